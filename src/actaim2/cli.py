@@ -1,0 +1,51 @@
+"""`actaim2` command line: one sub-command per job, each implemented in its own module.
+
+A sub-command module exposes ``add_arguments(parser)`` and ``main(args) -> int`` and keeps
+its heavy imports (SAPIEN, torch, Open3D) inside ``main`` so that building the parser stays
+cheap: `actaim2 bench control` does not pay for SAPIEN.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+# command path -> (module, one-line help)
+COMMANDS: dict[tuple[str, ...], tuple[str, str]] = {
+    ("bench", "sim"): ("actaim2.bench.sim", "physics steps/s, render ms per camera, ring5 observation"),
+    ("bench", "perception"): ("actaim2.bench.perception", "clouds-in to views-out latency, in-process and through the node"),
+    ("bench", "control"): ("actaim2.bench.control", "IK success and latency, Ruckig time, straight-line deviation"),
+    ("render",): ("actaim2.perception.render_cli", "render a bag or saved cloud into orthographic PNG views"),
+    ("collect",): ("actaim2.data.collect_cli", "self-supervised data collection in simulation"),
+    ("stats",): ("actaim2.data.stats_cli", "statistics of a collected dataset"),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="actaim2", description=__doc__.splitlines()[0])
+    groups: dict[tuple[str, ...], argparse._SubParsersAction] = {(): parser.add_subparsers(dest="cmd0", required=True)}
+    for path, (module, help_text) in sorted(COMMANDS.items()):
+        for depth in range(1, len(path)):
+            prefix = path[:depth]
+            if prefix not in groups:
+                sub = groups[prefix[:-1]].add_parser(prefix[-1], help=f"{prefix[-1]} commands")
+                groups[prefix] = sub.add_subparsers(dest=f"cmd{depth}", required=True)
+        leaf = groups[path[:-1]].add_parser(path[-1], help=help_text)
+        leaf.set_defaults(_module=module)
+        try:
+            importlib.import_module(module).add_arguments(leaf)
+        except ModuleNotFoundError as exc:  # a command whose module is not installed yet
+            leaf.set_defaults(_missing=str(exc))
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if getattr(args, "_missing", None):
+        print(f"actaim2: this command is not available: {args._missing}", file=sys.stderr)
+        return 2
+    return int(importlib.import_module(args._module).main(args) or 0)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
