@@ -65,10 +65,10 @@ fi
 VENV="$ROOT/.venv"
 [ -x "$VENV/bin/python" ] || { log "creating .venv"; python3 -m venv "$VENV"; touch "$VENV/COLCON_IGNORE"; }
 stamp="$VENV/.requirements.sha256"
-want=$(cat requirements.txt src/actaim2/pyproject.toml src/actaim2/setup.py | sha256sum | cut -d' ' -f1)
+want=$(cat requirements.txt constraints.txt src/actaim2/pyproject.toml src/actaim2/setup.py | sha256sum | cut -d' ' -f1)
 if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
-  log "pip install -r requirements.txt (first time: a few minutes)"
-  "$VENV/bin/pip" install -q --disable-pip-version-check -r requirements.txt 2>&1 | grep -v "^WARNING: Location" || true
+  log "pip install -r requirements.txt -c constraints.txt (a fresh venv takes a few minutes)"
+  "$VENV/bin/pip" install -q --disable-pip-version-check -r requirements.txt -c constraints.txt 2>&1 | grep -v "^WARNING: Location" || true
   "$VENV/bin/pip" install -q --disable-pip-version-check --no-deps --no-build-isolation -e src/actaim2 2>&1 | grep -v "^WARNING: Location" || true
   "$VENV/bin/python" -c "import rclpy, sapien, open3d, pinocchio, ruckig, torch, rosbags, actaim2" \
     || { echo "[setup] venv is incomplete" >&2; exit 1; }
@@ -76,6 +76,8 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
 fi
 
 # ---- 4. colcon build ------------------------------------------------------------------
+# One build at a time in this workspace (several shells may run setup.sh at once).
+mkdir -p log; exec 9>log/.setup.lock; flock 9
 # shellcheck source=/dev/null
 . "$ROOT/scripts/env.sh" --no-workspace
 PACKAGES=(actaim2_msgs actaim2_sim actaim2_perception actaim2_policy actaim2_control)
@@ -97,7 +99,6 @@ src_hash=$( (for p in "${PACKAGES[@]}"; do d=$p; [ -d "$d" ] || d="compat/$p"; f
              | sort -z | xargs -0 sha256sum; cat cmake/*) | sha256sum | cut -d' ' -f1)
 if [ "$(cat install/.actaim2_build.sha256 2>/dev/null)" != "$src_hash" ]; then
   log "colcon build ${PACKAGES[*]}"
-  mkdir -p log
   base_paths=(); for p in "${PACKAGES[@]}"; do [ -d "$p" ] && base_paths+=("$p") || base_paths+=("compat/$p"); done
   colcon --log-base log build --base-paths "${base_paths[@]}" --symlink-install \
     --event-handlers console_direct- --cmake-args -DBUILD_TESTING=OFF -DPython3_EXECUTABLE="$VENV/bin/python" \
