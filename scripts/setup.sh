@@ -96,12 +96,12 @@ for compat in tf2_msgs control_msgs; do
   fi
 done
 src_hash=$( (for p in "${PACKAGES[@]}"; do d=$p; [ -d "$d" ] || d="compat/$p"; find "$d" -type f -not -path '*/__pycache__/*' -print0; done \
-             | sort -z | xargs -0 sha256sum; cat cmake/*) | sha256sum | cut -d' ' -f1)
+             | sort -z | xargs -0 sha256sum; cat cmake/* colcon.meta) | sha256sum | cut -d' ' -f1)
 if [ "$(cat install/.actaim2_build.sha256 2>/dev/null)" != "$src_hash" ]; then
   log "colcon build ${PACKAGES[*]}"
   base_paths=(); for p in "${PACKAGES[@]}"; do [ -d "$p" ] && base_paths+=("$p") || base_paths+=("compat/$p"); done
   colcon --log-base log build --base-paths "${base_paths[@]}" --symlink-install \
-    --event-handlers console_direct- --cmake-args -DBUILD_TESTING=OFF -DPython3_EXECUTABLE="$VENV/bin/python" \
+    --event-handlers console_direct- \
     >log/colcon-build.txt 2>&1 || { tail -n 60 log/colcon-build.txt >&2; exit 1; }
   echo "$src_hash" > install/.actaim2_build.sha256
 fi
