@@ -22,6 +22,7 @@ setup(
     entry_points={
         "console_scripts": [
             "calibration_publisher = actaim2_perception.calibration_publisher:main",
+            "fusion_node = actaim2_perception.fusion_node:main",
         ],
     },
 )

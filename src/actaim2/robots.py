@@ -8,6 +8,9 @@ the robot from here.
 """
 from __future__ import annotations
 
+import hashlib
+import os
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -68,7 +71,104 @@ def _panda() -> RobotSpec:
     )
 
 
-PRESETS = {"panda": _panda}
+def _kinova_j2s6s200() -> RobotSpec:
+    """Kinova Jaco2 j2s6s200 (6-DoF spherical wrist, 2 fingers) of example-robot-data.
+
+    Flange and TCP. ``j2s6s200_end_effector`` sits 0.16 m along link_6's -z (the hand's
+    approach direction), but its own x axis is the approach axis. The fingers sit at +-y of
+    link_6 and close towards y = 0 (positive finger angles close). The canonical tcp is put
+    where Panda's ``panda_hand_tcp`` is on its hand: at the centre of the grasping pads, here
+    the middle of the distal phalanges when the fingers close on a ~2 cm handle (~1.15 rad),
+    which the URDF puts at (-0.0025, 0, -0.18) in link_6, on the fingers' plane. Axes in
+    link_6: z_tcp = -z (approach), y_tcp = +y (closing direction, towards finger 1 as Panda's
+    y points to its left finger), x_tcp = y x z = -x. Expressed in the end-effector frame
+    that is the rotation below (x_tcp = z_ee, y_tcp = -y_ee, z_tcp = x_ee) and the offset
+    (0.02, 0, 0.0025).
+
+    Limits. Velocities are the URDF's (0.628 rad/s for joints 1-3, 0.838 for 4-6); the URDF
+    has no acceleration or jerk limits, so conservative values are chosen: acceleration
+    4 x the velocity limit (full speed in 0.25 s) and jerk 10 x the acceleration (the
+    acceleration ramps in 0.1 s), small against Panda's published 7.5-20 rad/s^2.
+
+    Gripper. The finger joints are `fixed` in this URDF (limits 0..1.51 still written);
+    :func:`movable_gripper_urdf` makes them revolute for simulation and control. 0 is wide
+    open; the fingertips meet at ~1.3 rad, the "closed" command (like Panda's 0 m).
+
+    Home: the tcp 0.35 m in front of the base (+x of `base`) at 0.45 m height, pointing down
+    with Panda's home orientation, elbow up (an IK solution, wrist away from its limits).
+    Joints 1, 4 and 6 are continuous (Pinocchio: nq = 9 != nv = 6); positions here are angles.
+    """
+    robots = example_robot_data_dir()
+    T = np.eye(4)
+    T[:3, :3] = np.array([[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]])
+    T[:3, 3] = [0.02, 0.0, 0.0025]
+    max_velocity = np.array([0.628318530718] * 3 + [0.837758040957] * 3)
+    return RobotSpec(
+        name="kinova_j2s6s200",
+        urdf_path=robots / "kinova_description" / "robots" / "kinova.urdf",
+        package_dirs=(robots.parent.parent,),
+        srdf_path=robots / "kinova_description" / "srdf" / "kinova.srdf",
+        root_link="base",
+        arm_joints=tuple(f"j2s6s200_joint_{i}" for i in range(1, 7)),
+        gripper_joints=("j2s6s200_joint_finger_1", "j2s6s200_joint_finger_2"),
+        flange_frame="j2s6s200_end_effector",
+        T_flange_tcp=T,
+        home=np.array([-1.5426, 3.2403, 1.8317, 0.0, 4.8746, 0.0282]),
+        gripper_open=0.0,
+        gripper_closed=1.3,
+        max_velocity=max_velocity,
+        max_acceleration=4.0 * max_velocity,
+        max_jerk=40.0 * max_velocity,
+    )
+
+
+PRESETS = {"panda": _panda, "kinova_j2s6s200": _kinova_j2s6s200}
+
+
+def _resolve_package_uri(uri: str, package_dirs: tuple[Path, ...], urdf_dir: Path) -> str:
+    """Absolute path of a URDF mesh reference (``package://pkg/rel`` or a relative path)."""
+    if uri.startswith("package://"):
+        rel = uri[len("package://"):]
+        for base in package_dirs:
+            if (base / rel).exists():
+                return str((base / rel).resolve())
+        raise FileNotFoundError(f"{uri} not found under {[str(p) for p in package_dirs]}")
+    if uri.startswith("file://"):
+        return uri[len("file://"):]
+    return str((urdf_dir / uri).resolve())
+
+
+def movable_gripper_urdf(spec: RobotSpec, cache_dir: Path | None = None) -> Path:
+    """The robot's URDF with movable gripper joints and absolute mesh paths, written once.
+
+    Some published URDFs (example-robot-data's Kinova) declare the finger joints `fixed`
+    although they move: simulation must actuate them and control must know where the
+    fingers are. Each gripper joint declared `fixed` becomes `revolute` with the `<limit>`
+    the URDF already writes for it. Mesh references (``package://``, relative) become
+    absolute file paths, so SAPIEN, Pinocchio and Open3D load the file without package
+    resolution. The result is content-addressed in ``cache_dir`` (default
+    ``$XDG_CACHE_HOME/actaim2/urdf``) and written atomically, so concurrent processes share it.
+    """
+    root = ET.parse(spec.urdf_path).getroot()
+    for joint in root.iter("joint"):
+        if joint.get("name") in spec.gripper_joints and joint.get("type") == "fixed":
+            limit = joint.find("limit")
+            if limit is None or float(limit.get("upper", 0.0)) <= float(limit.get("lower", 0.0)):
+                raise ValueError(f"{spec.urdf_path}: fixed gripper joint {joint.get('name')} has no usable <limit>")
+            joint.set("type", "revolute")
+    for mesh in root.iter("mesh"):
+        mesh.set("filename", _resolve_package_uri(mesh.get("filename", ""), spec.package_dirs, spec.urdf_path.parent))
+    text = ET.tostring(root, encoding="unicode")
+    digest = hashlib.sha256(text.encode()).hexdigest()[:16]
+    if cache_dir is None:
+        cache_dir = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "actaim2" / "urdf"
+    path = Path(cache_dir) / f"{spec.name}-{digest}.urdf"
+    if not path.exists():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text('<?xml version="1.0"?>\n' + text)
+        os.replace(tmp, path)
+    return path
 
 
 def load_robot_spec(name_or_yaml: str) -> RobotSpec:

@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from actaim2.sim.success import dof_success, moved_fraction
+
 PHASES = ("init", "reach", "grasp", "manipulate")  # keypose phase ids 0..3 (DESIGN.md Keypose.msg)
 KEYFRAME_OBSERVATIONS = ("o0", "o1", "o2", "o3")  # O_i, taken before a_i
 HIDDEN_ROBOT_OBSERVATIONS = ("init", "final")  # O_init, O_final
@@ -79,11 +81,9 @@ class ObjectState:
     initial: np.ndarray
     final: np.ndarray
 
-    def moved_fraction(self) -> np.ndarray:
-        """|final - initial| / range per DoF (a DoF without range counts as not moved)."""
-        span = np.asarray(self.upper, float) - np.asarray(self.lower, float)
-        delta = np.abs(np.asarray(self.final, float) - np.asarray(self.initial, float))
-        return np.where(span > 1e-9, delta / np.where(span > 1e-9, span, 1.0), 0.0)
+    def signed_change(self) -> np.ndarray:
+        """(final - initial) / range per DoF (a DoF without range counts as not moved)."""
+        return moved_fraction(self.initial, self.final, self.lower, self.upper)
 
     def to_json(self) -> dict:
         return {k: (list(v) if k == "names" else [float(x) for x in v]) for k, v in vars(self).items()}
@@ -93,11 +93,9 @@ class ObjectState:
         return cls(list(d["names"]), *(np.asarray(d[k], float) for k in ("lower", "upper", "initial", "final")))
 
 
-GT_SUCCESS_FRACTION = 0.3  # the paper's ground-truth criterion: some DoF moved > 30% of its range
-
-
-def ground_truth_success(state: ObjectState, fraction: float = GT_SUCCESS_FRACTION) -> bool:
-    return bool(np.any(state.moved_fraction() > fraction))
+def ground_truth_success(state: ObjectState) -> bool:
+    """The paper's criterion (``actaim2.sim.success``): some DoF moved by more than 30% of its range."""
+    return dof_success(state.initial, state.final, state.lower, state.upper)
 
 
 @dataclass
@@ -113,6 +111,7 @@ class Trajectory:
     seed: int
     keyposes: list[Keypose]
     observations: dict[str, Observation]  # OBSERVATION_NAMES -> Observation
+    robot_joints: dict[str, dict[str, float]]  # OBSERVATION_NAMES -> joint name -> position (robot self-filter)
     object_state: ObjectState
     info: dict = field(default_factory=dict)  # sampler details, execution results (JSON-able)
 

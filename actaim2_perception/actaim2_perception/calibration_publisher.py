@@ -1,0 +1,56 @@
+"""calibration_publisher: a calibration YAML (hand-eye result) -> latched /tf_static.
+
+Real rigs calibrate their cameras offline; publishing the result on /tf_static (reliable,
+transient local) lets every node - and every recorded bag - carry the extrinsics exactly as the
+simulator's do, so the fusion node needs no file of its own. YAML format: see
+``actaim2.perception.calibration``.
+"""
+from __future__ import annotations
+
+import rclpy
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+
+from actaim2.perception.calibration import load_calibration
+from actaim2.runtime import apply_ros_defaults
+from actaim2_perception.transforms import StaticTransformPublisher, matrix_to_transform
+
+
+class CalibrationPublisher(Node):
+    def __init__(self) -> None:
+        super().__init__("calibration_publisher")
+        self.declare_parameter(
+            "calibration_file", "", ParameterDescriptor(description="YAML: parent_frame + transforms (child frame -> 4x4)")
+        )
+        path = self.get_parameter("calibration_file").value
+        if not path:
+            raise ValueError("parameter 'calibration_file' is empty: give the calibration YAML to publish")
+        parent, transforms = load_calibration(path)
+        stamp = self.get_clock().now().to_msg()
+        self._publisher = StaticTransformPublisher(self)
+        self._publisher.send([matrix_to_transform(T, parent, child, stamp) for child, T in transforms.items()])
+        self.get_logger().info(f"published {len(transforms)} static transform(s) from {path}: {parent} -> {sorted(transforms)}")
+
+
+def main(args: list[str] | None = None) -> int:
+    apply_ros_defaults()
+    rclpy.init(args=args)
+    try:
+        node = CalibrationPublisher()
+    except (OSError, ValueError) as exc:
+        rclpy.logging.get_logger("calibration_publisher").error(f"cannot start: {exc}")
+        rclpy.try_shutdown()
+        return 1
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,230 @@
+"""fusion_node: camera clouds in, /fused_points, /ortho_views and /ortho_views/preview out.
+
+A thin adapter over ``actaim2.perception``: it synchronises the cloud topics, looks up their
+extrinsics (/tf_static or a calibration YAML), keeps the self-filter at the latest
+/joint_states, and publishes what ``Perception.process`` returns. Bad input (empty or all-NaN
+clouds, missing fields, unknown frames, stamps too far apart, nothing inside the workspace) is
+reported once per cause and topic, throttled, and the set is dropped: nothing half-made is
+ever published, and the node keeps running.
+"""
+from __future__ import annotations
+
+import array
+import time
+from functools import partial
+
+import numpy as np
+import rclpy
+import torch
+from actaim2_msgs.msg import OrthoViews
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.time import Time
+from sensor_msgs.msg import Image, JointState, PointCloud2
+
+from actaim2.perception.calibration import load_calibration
+from actaim2.perception.cloud_codec import CloudFormatError
+from actaim2.perception.fusion import CameraCloud, FusionConfig
+from actaim2.perception.ortho_views import CHANNELS, VIEWS, rgb_mosaic
+from actaim2.perception.pipeline import EmptyObservationError, Perception, PerceptionConfig
+from actaim2.perception.self_filter import RobotSelfFilter
+from actaim2.perception.static_tf import StaticTransformBuffer, UnknownFrameError
+from actaim2.perception.time_sync import ApproximateTimeSync
+from actaim2.robots import load_robot_spec
+from actaim2.runtime import apply_ros_defaults
+from actaim2_perception.pointcloud2 import from_msg, to_msg
+from actaim2_perception.transforms import listen_tf_static
+
+VIEWS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
+
+PARAMETERS = {
+    # name: (default, description)
+    "cloud_topics": (["/points2"], "PointCloud2 topics to fuse (organized or not, any frame and layout)"),
+    "sync_slop": (0.05, "s: clouds whose stamps lie within this window are fused together"),
+    "calibration_file": ("", "extrinsics YAML (frame -> 4x4); empty = take them from /tf_static"),
+    "world_frame": ("world", "frame of the fused cloud and the views"),
+    "workspace_center": ([0.5, 0.0, 0.4], "m, world: centre of the workspace cube (crop and views)"),
+    "workspace_half_extent": (0.6, "m: half the side of the workspace cube"),
+    "voxel_size": (0.005, "m: voxel grid of the fused cloud; 0 keeps every point"),
+    "outlier_neighbors": (0, "statistical outlier removal: neighbours per point; 0 disables it"),
+    "outlier_std_ratio": (2.0, "statistical outlier removal: drop points beyond mean + ratio * std"),
+    "resolution": (128, "pixels per side of each orthographic view (128 default, 224 supported)"),
+    "robot": ("panda", "robot preset or RobotSpec YAML whose collision geometry the self-filter removes"),
+    "self_filter_margin": (0.01, "m: points this close to the robot's collision geometry are removed"),
+    "remove_robot_fused": (False, "remove robot points from /fused_points"),
+    "remove_robot_views": (True, "remove robot points from /ortho_views (the policy is trained robot-hidden)"),
+    "joint_states_topic": ("/joint_states", "robot joint positions for the self-filter"),
+    "report_period": (10.0, "s: a given bad-input cause is logged at most once per period"),
+    "torch_threads": (1, "CPU threads for fusion and rendering; 1 avoids OpenMP spin contention on small machines"),
+}
+
+
+class ThrottledReporter:
+    """Logs each cause at most once per period (rclpy's own throttle is per call site, not per cause)."""
+
+    def __init__(self, node: Node, period: float) -> None:
+        self._node = node
+        self._period = period
+        self._last: dict[str, float] = {}
+
+    def __call__(self, cause: str, text: str) -> None:
+        now = time.monotonic()
+        if now - self._last.get(cause, -np.inf) >= self._period:
+            self._last[cause] = now
+            self._node.get_logger().warning(f"{text} (dropped; repeated at most every {self._period:g} s)")
+
+
+class FusionNode(Node):
+    def __init__(self) -> None:
+        super().__init__("fusion_node")
+        for name, (default, description) in PARAMETERS.items():
+            self.declare_parameter(name, default, ParameterDescriptor(description=description))
+        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        torch.set_num_threads(int(p["torch_threads"]))
+        self._topics = list(p["cloud_topics"])
+        self._world = p["world_frame"]
+        self._report = ThrottledReporter(self, float(p["report_period"]))
+
+        needs_robot = bool(p["remove_robot_fused"] or p["remove_robot_views"])
+        self_filter = RobotSelfFilter(load_robot_spec(p["robot"]), p["self_filter_margin"]) if needs_robot else None
+        fusion = FusionConfig(
+            center=tuple(float(c) for c in p["workspace_center"]),
+            half_extent=float(p["workspace_half_extent"]),
+            voxel_size=float(p["voxel_size"]),
+            outlier_neighbors=int(p["outlier_neighbors"]),
+            outlier_std_ratio=float(p["outlier_std_ratio"]),
+        )
+        self._perception = Perception(
+            PerceptionConfig(fusion, int(p["resolution"]), bool(p["remove_robot_fused"]), bool(p["remove_robot_views"])),
+            self_filter,
+        )
+        self._have_joints = not needs_robot
+
+        self._tf = StaticTransformBuffer()
+        if p["calibration_file"]:
+            parent, transforms = load_calibration(p["calibration_file"])
+            for child, T in transforms.items():
+                self._tf.set_transform(parent, child, T)
+        else:
+            listen_tf_static(self, self._tf)
+        self._sync = ApproximateTimeSync(len(self._topics), int(float(p["sync_slop"]) * 1e9))
+
+        self._fused_pub = self.create_publisher(PointCloud2, "/fused_points", qos_profile_sensor_data)
+        self._views_pub = self.create_publisher(OrthoViews, "/ortho_views", VIEWS_QOS)
+        self._preview_pub = self.create_publisher(Image, "/ortho_views/preview", qos_profile_sensor_data)
+        for index, topic in enumerate(self._topics):
+            self.create_subscription(PointCloud2, topic, partial(self._on_cloud, index), qos_profile_sensor_data)
+        if needs_robot:
+            self.create_subscription(JointState, p["joint_states_topic"], self._on_joint_state, 10)
+        self.get_logger().info(
+            f"fusing {self._topics} into '{self._world}' (cube {list(fusion.center)} +- {fusion.half_extent} m, "
+            f"{p['resolution']} px views, extrinsics from {p['calibration_file'] or '/tf_static'})"
+        )
+
+    def _on_joint_state(self, msg: JointState) -> None:
+        if len(msg.position) != len(msg.name):
+            self._report("joint_states", f"JointState with {len(msg.name)} names but {len(msg.position)} positions")
+            return
+        self._perception.self_filter.set_joint_positions(list(msg.name), list(msg.position))
+        self._have_joints = True
+
+    def _on_cloud(self, index: int, msg: PointCloud2) -> None:
+        group = self._sync.add(index, Time.from_msg(msg.header.stamp).nanoseconds, msg)
+        if group is None:
+            if self._sync.last_spread_ns is not None:
+                self._report(
+                    "stamps",
+                    f"cloud stamps {self._sync.last_spread_ns / 1e6:.1f} ms apart exceed sync_slop "
+                    f"{self._sync.slop_ns / 1e6:.1f} ms",
+                )
+            return
+        self._process(group)
+
+    def _decode(self, topic: str, msg: PointCloud2) -> CameraCloud | None:
+        try:
+            cloud = from_msg(msg)
+        except CloudFormatError as exc:
+            self._report(f"format:{topic}", f"{topic}: unreadable PointCloud2: {exc}")
+            return None
+        if len(cloud.xyz) == 0:
+            self._report(f"empty:{topic}", f"{topic}: empty cloud")
+            return None
+        if not np.isfinite(cloud.xyz).all(axis=1).any():
+            self._report(f"nan:{topic}", f"{topic}: every point is NaN")
+            return None
+        try:
+            T = self._tf.lookup(self._world, msg.header.frame_id)
+        except UnknownFrameError as exc:
+            self._report(f"frame:{topic}", f"{topic}: unknown frame '{msg.header.frame_id}': {exc}")
+            return None
+        return CameraCloud(cloud.xyz, cloud.rgb, T)
+
+    def _process(self, msgs: list[PointCloud2]) -> None:
+        clouds = [self._decode(topic, msg) for topic, msg in zip(self._topics, msgs)]
+        if any(c is None for c in clouds):
+            return
+        if not self._have_joints:
+            self._report("joint_states", "no JointState received yet: the robot cannot be removed")
+            return
+        try:
+            observation = self._perception.process(clouds)
+        except EmptyObservationError as exc:
+            self._report("workspace", str(exc))
+            return
+        stamp = max((m.header.stamp for m in msgs), key=lambda s: Time.from_msg(s).nanoseconds)
+        self._views_pub.publish(self._views_msg(observation.views, stamp))
+        if self._fused_pub.get_subscription_count():
+            self._fused_pub.publish(to_msg(observation.fused.xyz, observation.fused.rgb, self._world, stamp))
+        if self._preview_pub.get_subscription_count():
+            self._preview_pub.publish(self._preview_msg(observation.views, stamp))
+
+    def _views_msg(self, views: np.ndarray, stamp) -> OrthoViews:
+        fusion = self._perception.config.fusion
+        msg = OrthoViews()
+        msg.header.stamp = stamp
+        msg.header.frame_id = self._world
+        msg.height, msg.width = int(views.shape[2]), int(views.shape[3])
+        msg.views = list(VIEWS)
+        msg.channels = list(CHANNELS)
+        data = array.array("f")
+        data.frombytes(np.ascontiguousarray(views, dtype=np.float32).tobytes())
+        msg.data = data
+        msg.center.x, msg.center.y, msg.center.z = (float(c) for c in fusion.center)
+        msg.half_extent = float(fusion.half_extent)
+        return msg
+
+    def _preview_msg(self, views: np.ndarray, stamp) -> Image:
+        mosaic = rgb_mosaic(views)
+        msg = Image()
+        msg.header.stamp = stamp
+        msg.header.frame_id = self._world
+        msg.height, msg.width = mosaic.shape[:2]
+        msg.encoding = "rgb8"
+        msg.step = 3 * mosaic.shape[1]
+        msg.data = mosaic.tobytes()
+        return msg
+
+
+def main(args: list[str] | None = None) -> int:
+    apply_ros_defaults()
+    rclpy.init(args=args)
+    try:
+        node = FusionNode()
+    except (OSError, ValueError) as exc:  # unreadable calibration file, unknown robot preset
+        rclpy.logging.get_logger("fusion_node").error(f"cannot start: {exc}")
+        rclpy.try_shutdown()
+        return 1
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,144 @@
+"""The object as the samplers see it: points from the robot-hidden cameras, nothing privileged.
+
+Depth images are back-projected, fused in `world` and cropped to the workspace cube
+(``actaim2.perception.fusion``), then the support surface is found with RANSAC and removed.
+The result is the object cloud (random interaction points are drawn from it). Removing the
+object's own large planar faces as well (cabinet fronts, table tops) and clustering the rest
+with DBSCAN leaves the parts that stick out: handles, knobs, buttons (heuristic grasping).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from actaim2.data.trajectory import CameraImage, Observation
+from actaim2.perception.fusion import CameraCloud, FusionConfig, fuse
+
+
+@dataclass(frozen=True)
+class CloudConfig:
+    center: tuple[float, float, float]  # workspace cube around the object, world (m)
+    half_extent: float = 0.6
+    voxel_size: float = 0.005
+    plane_distance: float = 0.006  # RANSAC inlier distance (m)
+    support_max_tilt_deg: float = 15.0  # a support plane is within this of horizontal
+    support_band: float = 0.05  # ... and within this of the cloud's lowest point (m)
+    part_plane_min_fraction: float = 0.08  # an object face is a plane holding this share of points
+    max_part_planes: int = 6
+    dbscan_eps: float = 0.015
+    dbscan_min_points: int = 8
+    segment_min_points: int = 15
+    segment_max_extent: float = 0.35  # m; larger clusters are bodies, not handles or knobs
+
+
+@dataclass
+class ObjectCloud:
+    points: np.ndarray  # (N, 3) world, support removed
+    colors: np.ndarray  # (N, 3) uint8
+    normals: np.ndarray  # (N, 3) unit, unoriented
+
+
+def back_project(image: CameraImage) -> np.ndarray:
+    """(H*W, 3) points in the camera's optical frame (NaN where depth is 0).
+
+    Pixel (u, v) is centred at (u + 0.5, v + 0.5), the simulator's convention
+    (``actaim2.sim.cameras.CameraSpec.pixel_rays``).
+    """
+    h, w = image.depth.shape
+    K = image.K
+    u = (np.arange(w, dtype=np.float32) + 0.5 - K[0, 2]) / K[0, 0]
+    v = (np.arange(h, dtype=np.float32) + 0.5 - K[1, 2]) / K[1, 1]
+    z = np.where(image.depth > 0, image.depth, np.nan).astype(np.float32)
+    xyz = np.stack([u[None, :] * z, v[:, None] * z, z], axis=-1)
+    return xyz.reshape(-1, 3)
+
+
+def fused_cloud(observation: Observation, config: CloudConfig):
+    clouds = [CameraCloud(back_project(im), im.rgb.reshape(-1, 3), im.T_world_optical) for _, im in sorted(observation.items())]
+    return fuse(clouds, FusionConfig(center=config.center, half_extent=config.half_extent, voxel_size=config.voxel_size))
+
+
+def _o3d(points: np.ndarray):
+    import open3d as o3d
+
+    return o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, dtype=np.float64)))
+
+
+def _plane_seed(rng: np.random.Generator) -> None:
+    """Open3D's RANSAC draws from its own global generator: seed it for reproducible collection."""
+    import open3d as o3d
+
+    o3d.utility.random.seed(int(rng.integers(2**31)))
+
+
+def remove_support(points: np.ndarray, config: CloudConfig, rng: np.random.Generator) -> np.ndarray:
+    """Keep mask without the support surface (floor or table) and anything below it.
+
+    The support is a near-horizontal plane among the first three RANSAC planes lying at the
+    bottom of the cloud: the object's own horizontal faces (a table top, a lid) lie higher.
+    """
+    if len(points) == 0:
+        return np.ones(0, dtype=bool)
+    bottom = float(np.min(points[:, 2]))
+    keep = np.ones(len(points), dtype=bool)
+    pcd = _o3d(points)
+    cos_tilt = np.cos(np.deg2rad(config.support_max_tilt_deg))
+    heights = []
+    for _ in range(3):
+        idx = np.flatnonzero(keep)
+        if len(idx) < 3:
+            break
+        _plane_seed(rng)
+        model, inliers = pcd.select_by_index(idx).segment_plane(config.plane_distance, 3, 200)
+        n = np.asarray(model[:3])
+        if abs(n[2]) >= cos_tilt * np.linalg.norm(n) and -model[3] / model[2] <= bottom + config.support_band:
+            heights.append(-model[3] / model[2])
+        keep[idx[np.asarray(inliers)]] = False
+    if not heights:
+        return np.ones(len(points), dtype=bool)
+    return points[:, 2] > min(heights) + config.plane_distance
+
+
+def object_cloud(observation: Observation, config: CloudConfig, rng: np.random.Generator) -> ObjectCloud:
+    """Robot-hidden observation -> the object's points with normals."""
+    fused = fused_cloud(observation, config)
+    keep = remove_support(fused.xyz, config, rng)
+    pts = fused.xyz[keep].astype(np.float64)
+    normals = np.zeros_like(pts)
+    if len(pts) >= 3:
+        import open3d as o3d
+
+        pcd = _o3d(pts)
+        pcd.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=3 * config.voxel_size + 0.005, max_nn=20))
+        normals = np.asarray(pcd.normals)
+    return ObjectCloud(pts, fused.rgb[keep], normals)
+
+
+def part_segments(cloud: ObjectCloud, config: CloudConfig, rng: np.random.Generator) -> list[np.ndarray]:
+    """Index arrays of compact clusters left after removing the object's large planar faces.
+
+    These are the parts a hand can close on: handles, knobs, buttons, levers.
+    """
+    import open3d as o3d
+
+    remaining = np.arange(len(cloud.points))
+    pcd = _o3d(cloud.points)
+    for _ in range(config.max_part_planes):
+        if len(remaining) < max(3, config.segment_min_points):
+            break
+        _plane_seed(rng)
+        _, inliers = pcd.select_by_index(remaining).segment_plane(config.plane_distance, 3, 200)
+        if len(inliers) < config.part_plane_min_fraction * len(cloud.points):
+            break
+        remaining = np.delete(remaining, np.asarray(inliers))
+    if len(remaining) < config.segment_min_points:
+        return []
+    labels = np.asarray(pcd.select_by_index(remaining).cluster_dbscan(config.dbscan_eps, config.dbscan_min_points))
+    segments = []
+    for label in range(labels.max(initial=-1) + 1):
+        idx = remaining[labels == label]
+        extent = np.ptp(cloud.points[idx], axis=0).max() if len(idx) else 0.0
+        if len(idx) >= config.segment_min_points and extent <= config.segment_max_extent:
+            segments.append(idx)
+    return segments

@@ -1,0 +1,136 @@
+"""Robot self-filter: drop points that lie on the robot at its current joint positions.
+
+The mode selector is trained on observations in which the robot is hidden; a real arm cannot be
+hidden, so its points are removed here instead, making deployment views look like training
+views. Geometry is the URDF's collision model as loaded by Pinocchio (coal shapes), posed with
+forward kinematics at the latest /joint_states. Each collision shape is replaced by its convex
+hull (the Panda's collision meshes are already convex) and a point is removed when it lies
+inside a hull grown by ``margin``: growing the hull's faces outward removes the sensor noise
+around the surface while a nearby object (a handle 2 cm from the fingers) is kept.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import coal
+import numpy as np
+import pinocchio as pin
+from scipy.spatial import ConvexHull
+
+from actaim2.robots import RobotSpec
+
+# Round primitives are replaced by polygons with this many sides; the hull then lies inside the
+# true surface by at most r * (1 - cos(pi / n)) = 0.5% of the radius.
+_ROUND_SEGMENTS = 32
+
+
+@dataclass(frozen=True)
+class _Hull:
+    joint: int  # Pinocchio joint the shape is attached to (its placement is relative to it)
+    placement: np.ndarray  # 4x4 shape frame in the joint frame
+    vertices: np.ndarray  # (V, 3) in the shape frame
+    planes: np.ndarray  # (F, 4) outward unit normal n and offset d: inside <=> n.x + d <= 0
+
+
+def _circle(radius: float, z: float) -> np.ndarray:
+    a = np.linspace(0.0, 2 * np.pi, _ROUND_SEGMENTS, endpoint=False)
+    return np.stack([radius * np.cos(a), radius * np.sin(a), np.full_like(a, z)], axis=1)
+
+
+def _sphere(radius: float, z: float = 0.0) -> np.ndarray:
+    return np.concatenate([_circle(radius * np.cos(e), z + radius * np.sin(e)) for e in np.linspace(-np.pi / 2, np.pi / 2, 9)])
+
+
+def shape_vertices(shape: coal.CollisionGeometry) -> np.ndarray:
+    """Points whose convex hull is the shape (or a close polygonal approximation of it)."""
+    if isinstance(shape, coal.BVHModelBase):
+        return np.asarray(shape.vertices(), dtype=float)
+    if isinstance(shape, coal.Box):
+        h = np.asarray(shape.halfSide, dtype=float)
+        return np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=float) * h
+    if isinstance(shape, coal.Sphere):
+        return _sphere(shape.radius)
+    if isinstance(shape, coal.Cylinder):
+        return np.concatenate([_circle(shape.radius, -shape.halfLength), _circle(shape.radius, shape.halfLength)])
+    if isinstance(shape, coal.Capsule):
+        return np.concatenate([_sphere(shape.radius, -shape.halfLength), _sphere(shape.radius, shape.halfLength)])
+    raise ValueError(f"self-filter: unsupported collision shape {type(shape).__name__}")
+
+
+def _hull_planes(vertices: np.ndarray) -> np.ndarray:
+    # Triangulated hulls repeat the plane of each polygonal face; keep one copy.
+    return np.unique(np.round(ConvexHull(vertices).equations, 9), axis=0)
+
+
+def set_configuration(model: pin.Model, q: np.ndarray, joint_positions: dict[str, float]) -> None:
+    """Write named joint positions into Pinocchio's q in place (continuous joints take (cos, sin))."""
+    for name, value in joint_positions.items():
+        if not model.existJointName(name):
+            continue
+        joint = model.joints[model.getJointId(name)]
+        if joint.nq == 1:
+            q[joint.idx_q] = value
+        elif joint.nq == 2:
+            q[joint.idx_q : joint.idx_q + 2] = np.cos(value), np.sin(value)
+
+
+class RobotSelfFilter:
+    """Removes points inside the robot's collision geometry grown by ``margin`` (metres)."""
+
+    def __init__(self, spec: RobotSpec, margin: float = 0.01) -> None:
+        self.margin = float(margin)
+        self.model, geometry = pin.buildModelsFromUrdf(
+            str(spec.urdf_path), package_dirs=[str(p) for p in spec.package_dirs], geometry_types=pin.GeometryType.COLLISION
+        )
+        self._data = self.model.createData()
+        self._hulls = []
+        for obj in geometry.geometryObjects:
+            vertices = shape_vertices(obj.geometry)
+            self._hulls.append(_Hull(obj.parentJoint, obj.placement.homogeneous, vertices, _hull_planes(vertices)))
+        self._q = pin.neutral(self.model)
+        self._posed: list[tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None
+
+    def set_joint_positions(self, names: list[str], positions: list[float] | np.ndarray) -> None:
+        """Update from a JointState; joints the URDF does not have are ignored, missing ones keep their value."""
+        set_configuration(self.model, self._q, dict(zip(names, positions)))
+        self._posed = None
+
+    def _pose(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Per hull: world-frame planes grown by the margin, and the grown world AABB (lo, hi)."""
+        if self._posed is None:
+            pin.forwardKinematics(self.model, self._data, self._q)
+            posed = []
+            for hull in self._hulls:
+                T = self._data.oMi[hull.joint].homogeneous @ hull.placement
+                R, t = T[:3, :3], T[:3, 3]
+                normals = hull.planes[:, :3] @ R.T
+                offsets = hull.planes[:, 3] - normals @ t - self.margin
+                world_vertices = hull.vertices @ R.T + t
+                posed.append((np.concatenate([normals, offsets[:, None]], axis=1),
+                              world_vertices.min(axis=0) - self.margin, world_vertices.max(axis=0) + self.margin))
+            self._posed = posed
+        return self._posed
+
+    def keep_mask(self, points: np.ndarray) -> np.ndarray:
+        """True for world points (N, 3) that are not on the robot."""
+        points = np.asarray(points, dtype=np.float32)
+        keep = np.ones(len(points), dtype=bool)
+        posed = self._pose()
+        # Most points (table, object) are far from the arm: one test against the box around the
+        # whole robot leaves only a few candidates for the per-shape tests.
+        lo = np.min([p[1] for p in posed], axis=0)
+        hi = np.max([p[2] for p in posed], axis=0)
+        candidates = np.flatnonzero(_in_box(points, lo, hi))
+        near_robot = points[candidates].astype(float)
+        for planes, lo, hi in posed:
+            near = np.flatnonzero(_in_box(near_robot, lo, hi))
+            if near.size == 0:
+                continue
+            inside = np.all(near_robot[near] @ planes[:, :3].T + planes[:, 3] <= 0.0, axis=1)
+            keep[candidates[near[inside]]] = False
+        return keep
+
+
+def _in_box(points: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    x, y, z = points[:, 0], points[:, 1], points[:, 2]
+    return (x >= lo[0]) & (x <= hi[0]) & (y >= lo[1]) & (y <= hi[1]) & (z >= lo[2]) & (z <= hi[2])

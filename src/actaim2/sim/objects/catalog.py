@@ -1,0 +1,105 @@
+"""The object library: categories, instances and the evaluation splits, in one place.
+
+Categories follow the paper: six training categories (seen instances 0-7, unseen instances
+8-15) and three held-out categories (instances 0-7), plus the real robot's three-drawer shelf.
+An instance is generated from a seed derived from (category, instance), so every process
+builds the same object; the generated folder is cached on disk in PartNet-Mobility layout.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+import zlib
+from pathlib import Path
+
+import numpy as np
+
+from .categories import RECIPES
+from .model import FORMAT_VERSION, ObjectModel, read_meta
+
+TRAIN_CATEGORIES = ("faucet", "table", "storage_furniture", "door", "refrigerator", "switch")
+HELDOUT_CATEGORIES = ("window", "box", "safe")
+REAL_ROBOT_OBJECTS = ("three_drawer_shelf",)
+INSTANCES_PER_SPLIT = 8
+
+SPLITS: dict[str, dict[str, range]] = {
+    "train_seen": {c: range(0, INSTANCES_PER_SPLIT) for c in TRAIN_CATEGORIES},
+    "train_unseen_instance": {c: range(INSTANCES_PER_SPLIT, 2 * INSTANCES_PER_SPLIT) for c in TRAIN_CATEGORIES},
+    "heldout_category": {c: range(0, INSTANCES_PER_SPLIT) for c in HELDOUT_CATEGORIES},
+    "real_robot": {c: range(0, 1) for c in REAL_ROBOT_OBJECTS},
+}
+
+
+def list_categories() -> list[str]:
+    """Every category the generator knows, training ones first."""
+    return list(TRAIN_CATEGORIES + HELDOUT_CATEGORIES + REAL_ROBOT_OBJECTS)
+
+
+def list_splits() -> list[str]:
+    return list(SPLITS)
+
+
+def split_instances(split: str) -> list[tuple[str, int]]:
+    """(category, instance) pairs of a split, e.g. ``split_instances("train_seen")``."""
+    if split not in SPLITS:
+        raise ValueError(f"unknown split {split!r}; splits are {list(SPLITS)}")
+    return [(c, i) for c, r in SPLITS[split].items() for i in r]
+
+
+def category_instances(category: str) -> list[int]:
+    """All catalogued instances of a category (over every split)."""
+    _check_category(category)
+    return sorted({i for split in SPLITS.values() for i in split.get(category, ())})
+
+
+def object_id(category: str, instance: int) -> str:
+    return f"{category}_{int(instance):03d}"
+
+
+def instance_seed(category: str, instance: int) -> int:
+    """A stable seed per (category, instance): the same object in every process and run."""
+    return zlib.crc32(object_id(category, instance).encode())
+
+
+def generate(category: str, instance: int) -> ObjectModel:
+    """The object model of one instance (not written to disk)."""
+    _check_category(category)
+    if instance < 0:
+        raise ValueError(f"instance must be >= 0, got {instance}")
+    rng = np.random.default_rng(instance_seed(category, instance))
+    model = RECIPES[category](rng, object_id(category, instance))
+    model.params.update(instance=int(instance), seed=instance_seed(category, instance))
+    return model
+
+
+def default_cache_dir() -> Path:
+    return Path(os.environ.get("ACTAIM2_CACHE", Path.home() / ".cache" / "actaim2")) / "objects"
+
+
+def object_folder(category: str, instance: int, cache_dir: Path | None = None) -> Path:
+    """The PartNet-Mobility style folder of an instance, generated on first use.
+
+    Written to a temporary folder and renamed into place, so concurrent processes (a sim
+    node and a test) never see a half-written object.
+    """
+    cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    folder = cache / object_id(category, instance)
+    if (folder / "mobility.urdf").is_file() and read_meta(folder).get("format_version") == FORMAT_VERSION:
+        return folder
+    model = generate(category, instance)
+    cache.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}-", dir=cache))
+    model.write_folder(tmp)
+    if folder.exists():
+        shutil.rmtree(folder, ignore_errors=True)
+    try:
+        tmp.rename(folder)
+    except OSError:  # another process won the race: its folder is equally good
+        shutil.rmtree(tmp, ignore_errors=True)
+    return folder
+
+
+def _check_category(category: str) -> None:
+    if category not in RECIPES:
+        raise ValueError(f"unknown object category {category!r}; categories are {list_categories()}")

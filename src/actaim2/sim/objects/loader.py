@@ -1,0 +1,153 @@
+"""Load a PartNet-Mobility style object folder into a SAPIEN scene and place it before the robot.
+
+One path for every object: SAPIEN's URDF loader on ``<folder>/mobility.urdf`` (generated
+objects are written in that layout by :mod:`actaim2.sim.objects.catalog`). The object's root
+is fixed to the world; its movable joints keep the URDF damping (SAPIEN turns it into a
+zero-stiffness drive) and gain the URDF friction, and its links ignore gravity, so a part
+stays where the robot leaves it, as a real hinge or runner with some friction does (with
+gravity on, a half-open lid or sash would fall shut before the first observation).
+
+Placement: the object, at its closed configuration (lower limits), is turned by ``yaw`` and
+moved so that its bounding box's front face is ``front_distance`` in front of the robot base
+(+x of ``world``), centred at ``lateral`` (y) and standing on the floor.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import sapien
+
+from ..urdf import physics_only_urdf
+from .model import Handle, read_handles, read_meta
+
+DEFAULT_FRONT_DISTANCE = 0.55  # m, for folders whose meta.json does not recommend one
+OBJECT_DENSITY = 500.0  # kg/m^3, wood-like
+OBJECT_FRICTION = 1.0  # static and dynamic, on every object surface
+
+
+@dataclass
+class LoadedObject:
+    """An articulated object in the scene, with its degrees of freedom and grasp annotations."""
+
+    folder: Path
+    object_id: str
+    category: str
+    articulation: sapien.physx.PhysxArticulation
+    joints: list  # movable PhysxArticulationJoint, in DoF order
+    lower: np.ndarray
+    upper: np.ndarray
+    handles: list[Handle]
+
+    @property
+    def dof_names(self) -> list[str]:
+        return [j.name for j in self.joints]
+
+    @property
+    def links(self) -> list:
+        return list(self.articulation.links)
+
+    def qpos(self) -> np.ndarray:
+        return np.asarray(self.articulation.get_qpos(), dtype=float)
+
+    def set_qpos(self, q: np.ndarray) -> None:
+        """Teleport the DoFs to ``q`` (clipped to the limits) at rest."""
+        q = np.clip(np.asarray(q, dtype=float), self.lower, self.upper)
+        self.articulation.set_qpos(q)
+        self.articulation.set_qvel(np.zeros_like(q))
+
+    def pose(self) -> np.ndarray:
+        """4x4 pose of the object's root link in ``world``."""
+        return self.articulation.get_root_pose().to_transformation_matrix()
+
+    def link(self, name: str):
+        for link in self.articulation.links:
+            if link.name == name:
+                return link
+        raise KeyError(f"object {self.object_id} has no link {name!r}")
+
+    def dof_index(self, joint_name: str) -> int:
+        names = self.dof_names
+        if joint_name not in names:
+            raise KeyError(f"object {self.object_id} has no movable joint {joint_name!r}; it has {names}")
+        return names.index(joint_name)
+
+
+def load_object(
+    scene: sapien.Scene,
+    folder: Path,
+    front_distance: float | None = None,
+    lateral: float = 0.0,
+    yaw: float = 0.0,
+    scale: float = 1.0,
+    keep_visuals: bool = False,
+) -> LoadedObject:
+    """Load ``folder`` (mobility.urdf + meshes) and place it; ``keep_visuals`` needs a render system."""
+    folder = Path(folder)
+    urdf = folder / "mobility.urdf"
+    if not urdf.is_file():
+        raise FileNotFoundError(f"{folder} is not a PartNet-Mobility style object folder: no mobility.urdf")
+    meta = read_meta(folder)
+    loader = scene.create_urdf_loader()
+    loader.fix_root_link = True
+    loader.scale = scale
+    loader.set_density(OBJECT_DENSITY)
+    loader.set_material(OBJECT_FRICTION, OBJECT_FRICTION, 0.0)
+    builders, actor_builders, _ = loader.parse(str(urdf if keep_visuals else physics_only_urdf(urdf)))
+    if len(builders) != 1 or actor_builders:
+        raise ValueError(f"{urdf}: expected one articulation, got {len(builders)} articulations and {len(actor_builders)} free bodies")
+    articulation = builders[0].build()
+    articulation.name = meta.get("anno_id", folder.name)
+    joints = articulation.get_active_joints()
+    if not joints:
+        raise ValueError(f"{urdf}: the object has no movable joint")
+    _apply_joint_friction(urdf, joints)
+    for link in articulation.links:
+        link.disable_gravity = True
+    limits = np.asarray([j.limit[0] for j in joints], dtype=float)
+    if not np.all(np.isfinite(limits)):
+        raise ValueError(f"{urdf}: every movable joint needs finite limits (continuous joints are not supported)")
+    obj = LoadedObject(folder, articulation.name, meta.get("model_cat", "unknown"), articulation, joints,
+                       limits[:, 0].copy(), limits[:, 1].copy(), read_handles(folder))
+    if front_distance is None:
+        front_distance = float(meta.get("params", {}).get("front_distance", DEFAULT_FRONT_DISTANCE))
+    place(obj, front_distance, lateral, yaw)
+    return obj
+
+
+def place(obj: LoadedObject, front_distance: float, lateral: float = 0.0, yaw: float = 0.0) -> None:
+    """Pose the object's root as the module docstring says (measured at the closed state)."""
+    art = obj.articulation
+    art.set_root_pose(sapien.Pose())
+    obj.set_qpos(obj.lower)
+    lo, hi = aabb(art)
+    anchor_obj = np.array([lo[0], (lo[1] + hi[1]) / 2, lo[2]])
+    anchor_world = np.array([front_distance, lateral, 0.0])
+    c, s = np.cos(yaw), np.sin(yaw)
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = anchor_world - R @ anchor_obj
+    art.set_root_pose(sapien.Pose(T))
+
+
+def aabb(articulation: sapien.physx.PhysxArticulation) -> tuple[np.ndarray, np.ndarray]:
+    """World axis-aligned bounding box of all collision shapes of an articulation."""
+    boxes = [link.compute_global_aabb_tight() for link in articulation.links if link.collision_shapes]
+    boxes = np.asarray(boxes, dtype=float)
+    return boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)
+
+
+def _apply_joint_friction(urdf: Path, joints: list) -> None:
+    """SAPIEN's loader drops ``<dynamics friction>``: set it on the joints here."""
+    import xml.etree.ElementTree as ET
+
+    friction = {}
+    for j in ET.parse(urdf).getroot().iter("joint"):
+        dyn = j.find("dynamics")
+        if dyn is not None and float(dyn.get("friction", 0.0)) > 0.0:
+            friction[j.get("name")] = float(dyn.get("friction"))
+    for joint in joints:
+        if joint.name in friction:
+            joint.friction = friction[joint.name]

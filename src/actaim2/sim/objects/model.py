@@ -1,0 +1,223 @@
+"""An articulated object as plain data, written out in PartNet-Mobility layout.
+
+Generated objects are described by :class:`ObjectModel` (links made of boxes and cylinders,
+joints with limits and damping, handle annotations) and written to a folder with the same
+layout as a PartNet-Mobility object (``mobility.urdf``, ``semantics.txt``, ``meta.json``, and
+optionally ``textured_objs/*.obj`` meshes). The simulator then loads every object, generated
+or user-supplied, through one path: SAPIEN's URDF loader on that folder.
+
+``handles.json`` is this project's addition to the layout: where each movable part can be
+grasped (privileged information for the scripted expert, never a policy input). Objects
+without it can still be simulated, only not driven by the expert.
+
+Object frame convention (the PartNet-Mobility one as used with SAPIEN): z up, the object's
+front faces -x, origin at the centre of its footprint on the floor.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+Vec3 = tuple[float, float, float]
+RGBA = tuple[float, float, float, float]
+
+# Version of the generator's output: bump it to invalidate cached object folders.
+FORMAT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class Shape:
+    """A box (``size`` = full extents) or a cylinder (``size`` = (radius, length, 0), axis z)."""
+
+    kind: str
+    size: Vec3
+    xyz: Vec3 = (0.0, 0.0, 0.0)
+    rpy: Vec3 = (0.0, 0.0, 0.0)
+    rgba: RGBA = (0.7, 0.7, 0.7, 1.0)
+
+
+@dataclass
+class Link:
+    name: str
+    shapes: list[Shape] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A URDF joint. Movable joints open towards ``upper`` (``lower`` is the closed state)."""
+
+    name: str
+    type: str  # "fixed" | "revolute" | "prismatic"
+    parent: str
+    child: str
+    xyz: Vec3
+    axis: Vec3 = (1.0, 0.0, 0.0)
+    lower: float = 0.0
+    upper: float = 0.0
+    damping: float = 0.0
+    friction: float = 0.0
+    semantic: str = ""  # PartNet-Mobility part label: drawer, door, lid, lever, toggle, ...
+
+
+@dataclass(frozen=True)
+class Handle:
+    """A grasp on a movable part, in the part's link frame.
+
+    ``position`` is where the canonical TCP (between the fingertips) goes, ``approach`` the
+    TCP z axis (the direction the gripper moves in), ``closing`` the TCP y axis (the finger
+    closing direction); the gripper is symmetric, so -closing is as good.
+    """
+
+    link: str
+    joint: str
+    kind: str
+    position: Vec3
+    approach: Vec3
+    closing: Vec3
+
+    def tcp_in_link(self) -> np.ndarray:
+        """4x4 pose of the TCP in the link frame when grasping this handle."""
+        z = np.asarray(self.approach, dtype=float)
+        y = np.asarray(self.closing, dtype=float)
+        z /= np.linalg.norm(z)
+        y = y - z * (y @ z)
+        y /= np.linalg.norm(y)
+        T = np.eye(4)
+        T[:3, 0] = np.cross(y, z)
+        T[:3, 1] = y
+        T[:3, 2] = z
+        T[:3, 3] = self.position
+        return T
+
+
+@dataclass
+class ObjectModel:
+    """One generated articulated object: ``base`` is its root link, fixed to the world."""
+
+    object_id: str
+    category: str
+    links: list[Link]
+    joints: list[Joint]
+    handles: list[Handle]
+    params: dict = field(default_factory=dict)
+
+    def movable_joints(self) -> list[Joint]:
+        return [j for j in self.joints if j.type != "fixed"]
+
+    def to_urdf(self, mesh_files: dict[tuple[str, int], str] | None = None) -> str:
+        """URDF text; shapes listed in ``mesh_files`` reference that OBJ file instead of a primitive."""
+        lines = ['<?xml version="1.0"?>', f"<robot name={quoteattr(self.object_id)}>"]
+        for link in self.links:
+            lines.append(f'  <link name="{link.name}">')
+            for i, s in enumerate(link.shapes):
+                mesh = mesh_files.get((link.name, i)) if mesh_files else None
+                geometry = _geometry_xml(s, mesh)
+                origin = f'<origin xyz="{_fmt(s.xyz if mesh is None else (0, 0, 0))}" rpy="{_fmt(s.rpy if mesh is None else (0, 0, 0))}"/>'
+                lines.append(
+                    f'    <visual name="{link.name}-{i}">{origin}{geometry}'
+                    f'<material name="{link.name}-{i}"><color rgba="{_fmt(s.rgba)}"/></material></visual>'
+                )
+                lines.append(f"    <collision>{origin}{geometry}</collision>")
+            lines.append("  </link>")
+        for j in self.joints:
+            lines.append(f'  <joint name="{j.name}" type="{j.type}">')
+            lines.append(f'    <parent link="{j.parent}"/><child link="{j.child}"/>')
+            lines.append(f'    <origin xyz="{_fmt(j.xyz)}" rpy="0 0 0"/>')
+            if j.type != "fixed":
+                lines.append(f'    <axis xyz="{_fmt(j.axis)}"/>')
+                lines.append(f'    <limit lower="{j.lower:.6g}" upper="{j.upper:.6g}" effort="1000" velocity="10"/>')
+                lines.append(f'    <dynamics damping="{j.damping:.6g}" friction="{j.friction:.6g}"/>')
+            lines.append("  </joint>")
+        lines.append("</robot>")
+        return "\n".join(lines) + "\n"
+
+    def write_folder(self, folder: Path, meshes: bool = False) -> Path:
+        """Write the PartNet-Mobility layout into ``folder``; ``meshes`` writes every shape as an OBJ."""
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        mesh_files = None
+        if meshes:
+            (folder / "textured_objs").mkdir(exist_ok=True)
+            mesh_files = {}
+            for link in self.links:
+                for i, s in enumerate(link.shapes):
+                    rel = f"textured_objs/{link.name}-{i}.obj"
+                    _write_obj(folder / rel, *_shape_mesh(s))
+                    mesh_files[(link.name, i)] = rel
+        (folder / "mobility.urdf").write_text(self.to_urdf(mesh_files))
+        semantics = []
+        for j in self.joints:
+            kind = {"revolute": "hinge", "prismatic": "slider"}.get(j.type, "static")
+            semantics.append(f"{j.child} {kind} {j.semantic or 'body'}")
+        (folder / "semantics.txt").write_text("\n".join(semantics) + "\n")
+        meta = {"model_cat": self.category, "anno_id": self.object_id, "format_version": FORMAT_VERSION, "params": self.params}
+        (folder / "meta.json").write_text(json.dumps(meta, indent=1, default=float) + "\n")
+        (folder / "handles.json").write_text(json.dumps({"handles": [asdict(h) for h in self.handles]}, indent=1) + "\n")
+        return folder
+
+
+def read_handles(folder: Path) -> list[Handle]:
+    """Handle annotations of an object folder ([] when it has none, e.g. a real PartNet object)."""
+    path = Path(folder) / "handles.json"
+    if not path.is_file():
+        return []
+    return [Handle(**{k: tuple(v) if isinstance(v, list) else v for k, v in h.items()}) for h in json.loads(path.read_text())["handles"]]
+
+
+def read_meta(folder: Path) -> dict:
+    path = Path(folder) / "meta.json"
+    return json.loads(path.read_text()) if path.is_file() else {}
+
+
+def _fmt(values) -> str:
+    return " ".join(f"{float(v):.6g}" for v in values)
+
+
+def _geometry_xml(s: Shape, mesh: str | None) -> str:
+    if mesh is not None:
+        return f'<geometry><mesh filename="{mesh}"/></geometry>'
+    if s.kind == "box":
+        return f'<geometry><box size="{_fmt(s.size)}"/></geometry>'
+    if s.kind == "cylinder":
+        return f'<geometry><cylinder radius="{s.size[0]:.6g}" length="{s.size[1]:.6g}"/></geometry>'
+    raise ValueError(f"unknown shape kind {s.kind!r}")
+
+
+def _rpy_matrix(rpy: Vec3) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_euler("xyz", rpy).as_matrix()
+
+
+def _shape_mesh(s: Shape, segments: int = 24) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (in the link frame, the shape's origin applied) and triangles of a shape."""
+    if s.kind == "box":
+        h = np.asarray(s.size) / 2
+        v = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float) * h
+        f = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                      [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+    elif s.kind == "cylinder":
+        r, length = s.size[0], s.size[1]
+        a = np.linspace(0, 2 * np.pi, segments, endpoint=False)
+        ring = np.stack([r * np.cos(a), r * np.sin(a)], axis=1)
+        v = np.concatenate([np.c_[ring, np.full(segments, -length / 2)], np.c_[ring, np.full(segments, length / 2)],
+                            [[0, 0, -length / 2], [0, 0, length / 2]]])
+        f = []
+        for i in range(segments):
+            k = (i + 1) % segments
+            f += [[i, k, segments + k], [i, segments + k, segments + i],
+                  [2 * segments, k, i], [2 * segments + 1, segments + i, segments + k]]
+        f = np.array(f)
+    else:
+        raise ValueError(f"unknown shape kind {s.kind!r}")
+    return v @ _rpy_matrix(s.rpy).T + np.asarray(s.xyz), f
+
+
+def _write_obj(path: Path, vertices: np.ndarray, faces: np.ndarray) -> None:
+    text = "".join(f"v {x:.6g} {y:.6g} {z:.6g}\n" for x, y, z in vertices)
+    text += "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in faces)
+    path.write_text(text)

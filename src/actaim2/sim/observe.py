@@ -1,0 +1,67 @@
+"""The simulator's eyes: a camera rig rendered through one render path, with optional realism.
+
+:class:`CameraRig` is what the Python API (``SimEnv.observe``), the ROS node and the
+benchmark use. It owns the renderer, re-samples extrinsic jitter on every reset, and can
+render with some entities hidden - the paper's O_init / O_final observations are taken with
+the robot occluded, which in simulation means "not drawn, not occluding".
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import sapien
+
+from actaim2.geometry import transform_points
+from actaim2.sim.cameras import CameraFrame, CameraSpec
+from actaim2.sim.render_path import make_renderer
+from actaim2.sim.sensor_noise import SensorNoise
+
+
+@dataclass(frozen=True)
+class Observation:
+    """Frames of every camera at one sim time, with the nominal camera specs they belong to."""
+
+    frames: dict[str, CameraFrame]
+    cameras: dict[str, CameraSpec]
+    sim_time: float
+    hidden: frozenset[int]  # per_scene_ids left out of this observation (e.g. the robot's links)
+
+    def points_world(self, name: str) -> np.ndarray:
+        """(H, W, 3) points of one camera in ``world`` through its *nominal* extrinsics (what a
+        consumer of /tf_static computes; with extrinsic jitter on, this is where the error shows)."""
+        return transform_points(self.cameras[name].T_world_optical, self.frames[name].xyz)
+
+
+class CameraRig:
+    """Cameras attached to a SAPIEN scene."""
+
+    def __init__(
+        self,
+        scene: sapien.Scene,
+        cameras: list[CameraSpec],
+        render_path: str,
+        noise: SensorNoise = SensorNoise(),
+        seed: int = 0,
+    ) -> None:
+        """``render_path`` must be resolved (``sapien`` or ``raycast``, see
+        ``actaim2.sim.render_path.resolve_render_path``)."""
+        self.cameras = {c.name: c for c in cameras}
+        self.noise = noise
+        self.render_path = render_path
+        self._renderer = make_renderer(render_path, scene, cameras)
+        self._rng = np.random.default_rng(seed)
+        self.reset(seed)
+
+    def reset(self, seed: int) -> None:
+        """New episode: reseed the noise and draw this episode's extrinsic error."""
+        self._rng = np.random.default_rng(seed)
+        if self.noise.affects_extrinsics:
+            self._renderer.set_camera_poses(self.noise.jitter_poses(list(self.cameras.values()), self._rng))
+
+    def observe(self, sim_time: float, hidden: set[int] = frozenset()) -> Observation:
+        """Render every camera; entities whose per_scene_id is in ``hidden`` are left out."""
+        frames = self._renderer.render(set(hidden))
+        if self.noise.affects_depth:
+            frames = {name: self.noise.apply(frame, self._rng) for name, frame in frames.items()}
+        return Observation(frames, self.cameras, sim_time, frozenset(hidden))
