@@ -21,7 +21,7 @@ setup(
     license="MIT",
     entry_points={
         "console_scripts": [
-
+            "control_node = actaim2_control.control_node:main",
         ],
     },
 )

@@ -23,6 +23,7 @@ setup(
         "console_scripts": [
             "calibration_publisher = actaim2_perception.calibration_publisher:main",
             "fusion_node = actaim2_perception.fusion_node:main",
+            "latency_probe = actaim2_perception.latency_probe:main",
         ],
     },
 )

@@ -21,7 +21,7 @@ setup(
     license="MIT",
     entry_points={
         "console_scripts": [
-
+            "sim_node = actaim2_sim.sim_node:main",
         ],
     },
 )

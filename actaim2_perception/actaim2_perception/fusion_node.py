@@ -29,7 +29,7 @@ from actaim2.perception.cloud_codec import CloudFormatError
 from actaim2.perception.fusion import CameraCloud, FusionConfig
 from actaim2.perception.ortho_views import CHANNELS, VIEWS, rgb_mosaic
 from actaim2.perception.pipeline import EmptyObservationError, Perception, PerceptionConfig
-from actaim2.perception.self_filter import RobotSelfFilter
+from actaim2.perception.self_filter import DEFAULT_MARGIN, RobotSelfFilter
 from actaim2.perception.static_tf import StaticTransformBuffer, UnknownFrameError
 from actaim2.perception.time_sync import ApproximateTimeSync
 from actaim2.robots import load_robot_spec
@@ -38,6 +38,8 @@ from actaim2_perception.pointcloud2 import from_msg, to_msg
 from actaim2_perception.transforms import listen_tf_static
 
 VIEWS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
+_FUSION = FusionConfig()  # the library's defaults, so node, CLI and training agree
+_PERCEPTION = PerceptionConfig(_FUSION)
 
 PARAMETERS = {
     # name: (default, description)
@@ -45,16 +47,18 @@ PARAMETERS = {
     "sync_slop": (0.05, "s: clouds whose stamps lie within this window are fused together"),
     "calibration_file": ("", "extrinsics YAML (frame -> 4x4); empty = take them from /tf_static"),
     "world_frame": ("world", "frame of the fused cloud and the views"),
-    "workspace_center": ([0.5, 0.0, 0.4], "m, world: centre of the workspace cube (crop and views)"),
-    "workspace_half_extent": (0.6, "m: half the side of the workspace cube"),
-    "voxel_size": (0.005, "m: voxel grid of the fused cloud; 0 keeps every point"),
-    "outlier_neighbors": (0, "statistical outlier removal: neighbours per point; 0 disables it"),
-    "outlier_std_ratio": (2.0, "statistical outlier removal: drop points beyond mean + ratio * std"),
-    "resolution": (128, "pixels per side of each orthographic view (128 default, 224 supported)"),
+    "workspace_center": (list(_FUSION.center), "m, world: centre of the workspace cube (crop and views)"),
+    "workspace_half_extent": (_FUSION.half_extent, "m: half the side of the workspace cube"),
+    "voxel_size": (_FUSION.voxel_size, "m: voxel grid of the fused cloud; 0 keeps every point"),
+    "outlier_neighbors": (_FUSION.outlier_neighbors, "statistical outlier removal: neighbours per point; 0 disables it"),
+    "outlier_std_ratio": (_FUSION.outlier_std_ratio, "statistical outlier removal: drop points beyond mean + ratio * std"),
+    "resolution": (_PERCEPTION.resolution, "pixels per side of each orthographic view (128 default, 224 supported)"),
     "robot": ("panda", "robot preset or RobotSpec YAML whose collision geometry the self-filter removes"),
-    "self_filter_margin": (0.01, "m: points this close to the robot's collision geometry are removed"),
-    "remove_robot_fused": (False, "remove robot points from /fused_points"),
-    "remove_robot_views": (True, "remove robot points from /ortho_views (the policy is trained robot-hidden)"),
+    "self_filter_margin": (DEFAULT_MARGIN, "m: points this close to the robot's collision geometry are removed"),
+    "remove_robot_fused": (_PERCEPTION.remove_robot_fused, "remove robot points from /fused_points"),
+    "remove_robot_views": (
+        _PERCEPTION.remove_robot_views, "remove robot points from /ortho_views (the policy is trained robot-hidden)"
+    ),
     "joint_states_topic": ("/joint_states", "robot joint positions for the self-filter"),
     "report_period": (10.0, "s: a given bad-input cause is logged at most once per period"),
     "torch_threads": (1, "CPU threads for fusion and rendering; 1 avoids OpenMP spin contention on small machines"),

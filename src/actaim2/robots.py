@@ -172,7 +172,14 @@ def movable_gripper_urdf(spec: RobotSpec, cache_dir: Path | None = None) -> Path
 
 
 def load_robot_spec(name_or_yaml: str) -> RobotSpec:
-    """A preset by name, or a custom robot from a YAML file with the RobotSpec fields."""
+    """A preset by name, or any URDF described by a YAML file.
+
+    YAML keys (paths relative to the YAML file): ``urdf``, optional ``srdf`` and
+    ``package_dirs``, ``root_link``, ``arm_joints``, ``gripper_joints``, ``flange_frame``,
+    ``tcp_offset_xyz`` and ``tcp_offset_quat_xyzw`` (T_flange_tcp), ``gripper_open``,
+    ``gripper_closed``, optional ``home``, ``name`` and limits. Missing velocity limits are
+    the URDF's; missing acceleration and jerk limits follow the conservative rule of the
+    Kinova preset (4 x and 40 x the velocity limit)."""
     if name_or_yaml in PRESETS:
         return PRESETS[name_or_yaml]()
     path = Path(name_or_yaml)
@@ -187,9 +194,11 @@ def load_robot_spec(name_or_yaml: str) -> RobotSpec:
 
         T[:3, :3] = Rotation.from_quat(cfg["tcp_offset_quat_xyzw"]).as_matrix()
     n = len(cfg["arm_joints"])
+    urdf_path = (base / cfg["urdf"]).resolve()
+    velocity = np.asarray(cfg["max_velocity"] if "max_velocity" in cfg else _urdf_velocity_limits(urdf_path, cfg["arm_joints"]), dtype=float)
     return RobotSpec(
         name=cfg.get("name", path.stem),
-        urdf_path=(base / cfg["urdf"]).resolve(),
+        urdf_path=urdf_path,
         package_dirs=tuple((base / p).resolve() for p in cfg.get("package_dirs", ["."])),
         srdf_path=(base / cfg["srdf"]).resolve() if cfg.get("srdf") else None,
         root_link=cfg["root_link"],
@@ -200,7 +209,19 @@ def load_robot_spec(name_or_yaml: str) -> RobotSpec:
         home=np.asarray(cfg.get("home", [0.0] * n), dtype=float),
         gripper_open=float(cfg["gripper_open"]),
         gripper_closed=float(cfg["gripper_closed"]),
-        max_velocity=np.asarray(cfg.get("max_velocity", [1.0] * n), dtype=float),
-        max_acceleration=np.asarray(cfg.get("max_acceleration", [5.0] * n), dtype=float),
-        max_jerk=np.asarray(cfg.get("max_jerk", [100.0] * n), dtype=float),
+        max_velocity=velocity,
+        max_acceleration=np.asarray(cfg.get("max_acceleration", 4.0 * velocity), dtype=float),
+        max_jerk=np.asarray(cfg.get("max_jerk", 40.0 * velocity), dtype=float),
     )
+
+
+def _urdf_velocity_limits(urdf_path: Path, joints: list[str]) -> list[float]:
+    limits = {}
+    for joint in ET.parse(urdf_path).getroot().iter("joint"):
+        limit = joint.find("limit")
+        if limit is not None and limit.get("velocity") is not None:
+            limits[joint.get("name")] = float(limit.get("velocity"))
+    missing = [j for j in joints if limits.get(j, 0.0) <= 0.0]
+    if missing:
+        raise ValueError(f"{urdf_path}: no velocity limit for {missing}: give max_velocity in the robot YAML")
+    return [limits[j] for j in joints]

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import numpy as np
-import open3d as o3d
 import pytest
 
 from actaim2.data.actions import ActionSequence
@@ -17,19 +16,14 @@ HANDLE_CENTER = np.array([0.56, 0.0, 0.6])  # a horizontal bar 4 cm in front of 
 HANDLE_RADIUS = 0.01
 
 
-def _with_normals(points: np.ndarray) -> ObjectCloud:
-    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
-    pcd.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=0.012, max_nn=20))
-    return ObjectCloud(points, np.zeros((len(points), 3), np.uint8), np.asarray(pcd.normals))
-
-
 @pytest.fixture(scope="module")
 def door_with_handle() -> ObjectCloud:
     ys, zs = np.meshgrid(np.arange(-0.3, 0.3, 0.005), np.arange(0.2, 0.8, 0.005))
     face = np.c_[np.full(ys.size, 0.6), ys.ravel(), zs.ravel()]
     t, a = np.meshgrid(np.arange(-0.08, 0.08, 0.004), np.linspace(0, 2 * np.pi, 24, endpoint=False))
     bar = HANDLE_CENTER + np.c_[HANDLE_RADIUS * np.cos(a.ravel()), t.ravel(), HANDLE_RADIUS * np.sin(a.ravel())]
-    return _with_normals(np.r_[face, bar])
+    points = np.r_[face, bar]
+    return ObjectCloud(points, np.zeros((len(points), 3), np.uint8))
 
 
 def test_handle_is_segmented_and_grasped_antipodally(door_with_handle):
@@ -98,7 +92,7 @@ def test_gmm_samples_equally_from_every_cluster():
     z, actions = np.concatenate(z), np.array(actions)
     sampler = GMMAdaptiveSampler(actions, z, np.ones(len(z), bool), GMMConfig(max_clusters=5), SamplingConfig(), seed=0)
     assert sampler.n_clusters == 3 and sorted(sampler.cluster_sizes.tolist()) == sorted(sizes)
-    empty = ObjectCloud(np.zeros((0, 3)), np.zeros((0, 3), np.uint8), np.zeros((0, 3)))
+    empty = ObjectCloud(np.zeros((0, 3)), np.zeros((0, 3), np.uint8))
     drawn = [sampler.sample(empty, rng, i) for i in range(30)]
     assert all(a is not None for a in drawn)
     mode_of = [int(np.argmin(np.linalg.norm(p1_centres - a.p1, axis=1))) for a in drawn]

@@ -5,7 +5,8 @@ import numpy as np
 
 from actaim2.perception.cloud_codec import decode, encode
 from actaim2.perception.fusion import NO_COLOUR, CameraCloud, FusionConfig, fuse
-from actaim2.perception.synthetic import RaycastScene, box_mesh, look_at
+from actaim2.perception.synthetic import RaycastScene, box_mesh
+from actaim2.sim.cameras import look_at_optical
 
 BOX_CENTER = np.array([0.5, 0.0, 0.3])
 BOX_SIZE = np.array([0.2, 0.3, 0.25])
@@ -20,7 +21,7 @@ def distance_to_box_surface(points):
 
 def two_camera_clouds():
     scene = RaycastScene([(box_mesh(BOX_CENTER, BOX_SIZE), (200, 40, 40))])
-    cameras = [look_at(BOX_CENTER + [0.3, 0.8, 0.4], BOX_CENTER), look_at(BOX_CENTER + [-0.3, -0.8, 0.4], BOX_CENTER)]
+    cameras = [look_at_optical(BOX_CENTER + [0.3, 0.8, 0.4], BOX_CENTER), look_at_optical(BOX_CENTER + [-0.3, -0.8, 0.4], BOX_CENTER)]
     clouds = []
     for T in cameras:
         xyz, rgb = scene.capture(T, 160, 120)

@@ -95,8 +95,8 @@ def test_azure_kinect_matches_the_driver():
     (cam,) = make_rig("azure_kinect", BOX_CENTER)
     assert (cam.topic, cam.frame_id, cam.width, cam.height) == ("/points2", "depth_camera_link", 320, 288)
     assert [(p, c) for p, c, _ in cam.tf_chain] == [("world", "camera_base"), ("camera_base", "depth_camera_link")]
-    (full,) = make_rig("azure_kinect", BOX_CENTER, azure_kinect_mode="nfov_unbinned")
-    assert (full.width, full.height) == (640, 576)
+    (full,) = make_rig("azure_kinect", BOX_CENTER, width=640, height=576)
+    assert (full.width, full.height, full.fx) == (640, 576, 2 * cam.fx)
     # depth_camera_link is optical (x right, y down, z forward) and looks 6 degrees below
     # camera_base's x axis (x forward, y left, z up), 1.8 mm above its origin
     R = T_CAMERA_BASE_DEPTH[:3, :3]
@@ -107,8 +107,8 @@ def test_azure_kinect_matches_the_driver():
     # camera_base is pitched down towards the target but not rolled: its y axis is horizontal
     T_world_base = cam.tf_chain[0][2]
     assert abs(T_world_base[2, 1]) < 1e-9 and T_world_base[2, 2] > 0.5
-    with pytest.raises(ValueError, match="nfov_binned"):
-        make_rig("azure_kinect", BOX_CENTER, azure_kinect_mode="wfov")
+    with pytest.raises(ValueError, match="640x576 or 320x288"):
+        make_rig("azure_kinect", BOX_CENTER, width=1024, height=1024)
     with pytest.raises(ValueError, match="ring5"):
         make_rig("ring7", BOX_CENTER)
 

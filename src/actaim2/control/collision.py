@@ -89,10 +89,13 @@ class CollisionChecker:
 
         data = pin.GeometryData(geom)
         pin.computeCollisions(model, model.createData(), geom, data, self.robot.to_q(spec.home), False)
-        touching_at_home = [p for p, r in zip(geom.collisionPairs, data.collisionResults) if r.isCollision()]
-        for pair in [p for p in geom.collisionPairs if adjacent(p)] + touching_at_home:
-            if geom.existCollisionPair(pair):
-                geom.removeCollisionPair(pair)
+        remove = [
+            (p.first, p.second)  # copied: the pairs are views into a vector that shrinks below
+            for p, res in zip(geom.collisionPairs, data.collisionResults)
+            if adjacent(p) or res.isCollision()
+        ]
+        for first, second in remove:
+            geom.removeCollisionPair(pin.CollisionPair(first, second))
 
     def set_cloud(self, points: np.ndarray | None, resolution: float = 0.01) -> None:
         """Obstacle points in `world` (None clears). Cropping around the grasp point is the
@@ -102,6 +105,10 @@ class CollisionChecker:
             return
         points = np.asarray(points, dtype=float)
         self._cloud = coal.makeOctree(points[np.all(np.isfinite(points), axis=1)], resolution)
+
+    @property
+    def has_cloud(self) -> bool:
+        return self._cloud is not None
 
     def check(self, angles: np.ndarray, use_cloud: bool = True) -> Collision | None:
         """The first collision at these joint angles, or None when the configuration is safe."""

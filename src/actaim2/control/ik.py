@@ -42,7 +42,8 @@ class IKOptions:
     orientation_tolerance: float = 1e-3  # rad
     max_iterations: int = 60  # per attempt
     restarts: int = 40  # random restarts after the seeded attempt
-    damping: float = 1e-3  # lambda^2 of (J J^T + lambda^2 I)
+    damping: float = 1e-6  # lambda^2 = damping + error_damping * |e|^2 in (J J^T + lambda^2 I):
+    error_damping: float = 1e-2  # heavy far from the goal (robust), vanishing near it (fast)
     max_step: float = 0.4  # rad per iteration and joint (keeps steps in the linear regime)
     limit_margin: float = 1e-4  # rad kept from each joint limit
     unreachable_distance: float = 0.01  # m: closest unconstrained pose farther than this = unreachable
@@ -69,6 +70,7 @@ class IKSolver:
         model = robot.model
         bounded = ~robot.continuous
         self._bounded_idx_q = np.array([model.joints[int(j) + 1].idx_q for j in np.flatnonzero(bounded)], dtype=int)
+        self._bounded_idx_v = np.array([model.joints[int(j) + 1].idx_v for j in np.flatnonzero(bounded)], dtype=int)
         self._lo = robot.lower[bounded] + options.limit_margin
         self._hi = robot.upper[bounded] - options.limit_margin
         self._shoulder, self._reach = _reach_sphere(robot)
@@ -131,7 +133,7 @@ class IKSolver:
     def _descend(self, q: np.ndarray, goal: pin.SE3, clamp: bool) -> tuple[np.ndarray, bool, tuple[float, float]]:
         """Damped Gauss-Newton from q; (q, converged, (position error, orientation error))."""
         model, data, fid, opts = self.robot.model, self.robot.data, self.robot.tcp_frame, self.options
-        eye = np.eye(6) * opts.damping
+        eye = np.eye(6)
         pos_err = rot_err = np.inf
         for _ in range(opts.max_iterations):
             pin.computeJointJacobians(model, data, q)
@@ -143,7 +145,16 @@ class IKSolver:
             if pos_err < opts.position_tolerance and rot_err < opts.orientation_tolerance:
                 return q, True, (pos_err, rot_err)
             J = pin.Jlog6(fMg.inverse()) @ pin.getFrameJacobian(model, data, fid, pin.LOCAL)
-            v = J.T @ np.linalg.solve(J @ J.T + eye, err)
+            damping = eye * (opts.damping + opts.error_damping * float(err @ err))
+            v = J.T @ np.linalg.solve(J @ J.T + damping, err)
+            if clamp:
+                # Joints resting on a limit and pushed outwards drop out of this step
+                # (active set): the others then do the whole job instead of a clipped part.
+                qb, vb = q[self._bounded_idx_q], v[self._bounded_idx_v]
+                blocked = ((qb <= self._lo + 1e-9) & (vb < 0)) | ((qb >= self._hi - 1e-9) & (vb > 0))
+                if blocked.any():
+                    J[:, self._bounded_idx_v[blocked]] = 0.0
+                    v = J.T @ np.linalg.solve(J @ J.T + damping, err)
             peak = np.max(np.abs(v))
             if peak > opts.max_step:
                 v *= opts.max_step / peak

@@ -15,8 +15,8 @@ from typing import Protocol
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from actaim2.data.gripper import GripperGeometry, collides, count_inside, points_in_tcp, tcp_pose
-from actaim2.data.object_cloud import ObjectCloud
+from actaim2.data.gripper import GripperGeometry, collides, points_in_tcp, tcp_pose
+from actaim2.data.object_cloud import ObjectCloud, estimate_normals
 
 
 @dataclass
@@ -42,6 +42,7 @@ class AntipodalConfig:
     friction_deg: float = 30.0  # contact normals within this of the closing axis count as antipodal
     min_quality: float = 0.6  # mean |cos| of both sides' best contact normal with the closing axis
     neighbourhood: float = 0.02  # m radius for the local long axis
+    normal_radius: float = 0.012  # m radius of the neighbourhood a surface normal is fitted to
     collision_tolerance: int = 2
     min_points_between: int = 3
     reach_center: tuple[float, float, float] = (0.0, 0.0, 0.333)  # hands prefer to come from the robot
@@ -56,17 +57,18 @@ class AntipodalGraspProposer:
 
     def propose(self, cloud: ObjectCloud, segment: np.ndarray, segment_id: int, rng: np.random.Generator) -> list[GraspCandidate]:
         cfg = self.config
-        seg_pts, seg_nrm = cloud.points[segment], cloud.normals[segment]
-        if len(seg_pts) < 3:
+        if len(segment) < 3:
             return []
-        anchors = rng.choice(len(seg_pts), size=min(cfg.anchors, len(seg_pts)), replace=False)
         # Only points a hand placed on this segment can touch matter for collisions and contacts.
+        seg_pts = cloud.points[segment]
         centre = seg_pts.mean(0)
         reach = np.linalg.norm(seg_pts - centre, axis=1).max() + np.linalg.norm(cfg.gripper.palm_extent())
-        near = np.linalg.norm(cloud.points - centre, axis=1) <= reach
-        local = ObjectCloud(cloud.points[near], cloud.colors[near], cloud.normals[near])
+        near = np.flatnonzero(np.linalg.norm(cloud.points - centre, axis=1) <= reach)
+        pts = cloud.points[near]
+        normals = estimate_normals(pts, cfg.normal_radius)
+        seg_nrm = normals[np.searchsorted(near, segment)]
         out = []
-        for a in anchors:
+        for a in rng.choice(len(seg_pts), size=min(cfg.anchors, len(seg_pts)), replace=False):
             p, n = seg_pts[a], seg_nrm[a]
             if np.linalg.norm(n) < 0.5:
                 continue
@@ -75,7 +77,7 @@ class AntipodalGraspProposer:
             axis = self._long_axis(seg_pts, p, n)
             for tilt in cfg.approach_tilts_deg:
                 approach = Rotation.from_rotvec(np.deg2rad(tilt) * axis).apply(-n)
-                candidate = self._evaluate(local, seg_pts, p, approach, np.cross(axis, approach), segment_id)
+                candidate = self._evaluate(pts, normals, seg_pts, p, approach, np.cross(axis, approach), segment_id)
                 if candidate is not None:
                     out.append(candidate)
         return out
@@ -92,7 +94,7 @@ class AntipodalGraspProposer:
             axis = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
         return axis / np.linalg.norm(axis)
 
-    def _evaluate(self, cloud: ObjectCloud, seg_pts: np.ndarray, anchor: np.ndarray, approach: np.ndarray,
+    def _evaluate(self, pts: np.ndarray, normals: np.ndarray, seg_pts: np.ndarray, anchor: np.ndarray, approach: np.ndarray,
                   closing: np.ndarray, segment_id: int) -> GraspCandidate | None:
         cfg, g = self.config, self.config.gripper
         T = tcp_pose(anchor + cfg.depth * approach, approach, closing)
@@ -104,28 +106,28 @@ class AntipodalGraspProposer:
         y = local[inside, 1]
         T[:3, 3] += T[:3, 1] * (y.max() + y.min()) / 2.0  # centre the hand on the part
         width = float(y.max() - y.min())
-        if width > g.max_opening - 0.01 or collides(g, cloud.points, T, cfg.collision_tolerance):
+        if width > g.max_opening - 0.01 or collides(g, pts, T, cfg.collision_tolerance):
             return None
-        quality = self._antipodal_quality(cloud, T)
+        quality = self._antipodal_quality(pts, normals, T)
         if quality < cfg.min_quality:
             return None
         toward = anchor - np.asarray(cfg.reach_center)
         alignment = max(0.0, float(approach @ toward / np.linalg.norm(toward)))
         return GraspCandidate(T, width, quality * (0.5 + 0.5 * alignment), segment_id)
 
-    def _antipodal_quality(self, cloud: ObjectCloud, T: np.ndarray) -> float:
+    def _antipodal_quality(self, pts: np.ndarray, normals: np.ndarray, T: np.ndarray) -> float:
         """Mean over both fingers of the best |cos| between a first-contact normal and the closing axis.
 
         The first contacts are the points within 5 mm of the extreme of the closing region on
         each side; a side without any is no grasp.
         """
         region = self.config.gripper.closing_region()
-        local = points_in_tcp(cloud.points, T)
+        local = points_in_tcp(pts, T)
         inside = np.all((local >= region[0]) & (local <= region[1]), axis=1)
-        if count_inside(local, region) < self.config.min_points_between:
+        if inside.sum() < self.config.min_points_between:
             return 0.0
         y = local[inside, 1]
-        cos = np.abs(cloud.normals[inside] @ T[:3, 1])
+        cos = np.abs(normals[inside] @ T[:3, 1])
         good = np.cos(np.deg2rad(self.config.friction_deg))
         sides = []
         for side in (y >= y.max() - 0.005, y <= y.min() + 0.005):

@@ -49,9 +49,9 @@ def points_in_tcp(points: np.ndarray, T_world_tcp: np.ndarray) -> np.ndarray:
     return (np.asarray(points, dtype=float) - t) @ R
 
 
-def count_inside(local: np.ndarray, box: tuple[np.ndarray, np.ndarray], margin: float = 0.0) -> int:
+def count_inside(local: np.ndarray, box: tuple[np.ndarray, np.ndarray]) -> int:
     lo, hi = box
-    return int(np.sum(np.all((local >= lo - margin) & (local <= hi + margin), axis=1)))
+    return int(np.sum(np.all((local >= lo) & (local <= hi), axis=1)))
 
 
 def collides(gripper: GripperGeometry, points: np.ndarray, T_world_tcp: np.ndarray, tolerance: int = 3) -> bool:

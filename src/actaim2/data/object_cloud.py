@@ -36,7 +36,6 @@ class CloudConfig:
 class ObjectCloud:
     points: np.ndarray  # (N, 3) world, support removed
     colors: np.ndarray  # (N, 3) uint8
-    normals: np.ndarray  # (N, 3) unit, unoriented
 
 
 def back_project(image: CameraImage) -> np.ndarray:
@@ -65,11 +64,20 @@ def _o3d(points: np.ndarray):
     return o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, dtype=np.float64)))
 
 
-def _plane_seed(rng: np.random.Generator) -> None:
-    """Open3D's RANSAC draws from its own global generator: seed it for reproducible collection."""
+def fit_plane(points: np.ndarray, distance: float, rng: np.random.Generator, sample: int = 5000) -> tuple[np.ndarray, np.ndarray]:
+    """RANSAC plane (a, b, c, d), unit normal, and the inlier mask over all points.
+
+    The model is fitted on a random subsample (Open3D's RANSAC, seeded from ``rng`` so that
+    collection is reproducible) and its inliers counted on every point: a plane holding a
+    useful share of the cloud is found as well from 5000 points as from 100000, ~20x faster.
+    """
     import open3d as o3d
 
+    idx = rng.choice(len(points), size=min(sample, len(points)), replace=False)
     o3d.utility.random.seed(int(rng.integers(2**31)))
+    model, _ = _o3d(points[idx]).segment_plane(distance, 3, 200)
+    model = np.asarray(model, dtype=float) / np.linalg.norm(model[:3])
+    return model, np.abs(points @ model[:3] + model[3]) <= distance
 
 
 def remove_support(points: np.ndarray, config: CloudConfig, rng: np.random.Generator) -> np.ndarray:
@@ -78,41 +86,41 @@ def remove_support(points: np.ndarray, config: CloudConfig, rng: np.random.Gener
     The support is a near-horizontal plane among the first three RANSAC planes lying at the
     bottom of the cloud: the object's own horizontal faces (a table top, a lid) lie higher.
     """
-    if len(points) == 0:
-        return np.ones(0, dtype=bool)
+    if len(points) < 3:
+        return np.ones(len(points), dtype=bool)
     bottom = float(np.min(points[:, 2]))
-    keep = np.ones(len(points), dtype=bool)
-    pcd = _o3d(points)
+    remaining = np.ones(len(points), dtype=bool)
     cos_tilt = np.cos(np.deg2rad(config.support_max_tilt_deg))
     heights = []
     for _ in range(3):
-        idx = np.flatnonzero(keep)
+        idx = np.flatnonzero(remaining)
         if len(idx) < 3:
             break
-        _plane_seed(rng)
-        model, inliers = pcd.select_by_index(idx).segment_plane(config.plane_distance, 3, 200)
-        n = np.asarray(model[:3])
-        if abs(n[2]) >= cos_tilt * np.linalg.norm(n) and -model[3] / model[2] <= bottom + config.support_band:
+        model, inliers = fit_plane(points[idx], config.plane_distance, rng)
+        if abs(model[2]) >= cos_tilt and -model[3] / model[2] <= bottom + config.support_band:
             heights.append(-model[3] / model[2])
-        keep[idx[np.asarray(inliers)]] = False
+        remaining[idx[inliers]] = False
     if not heights:
         return np.ones(len(points), dtype=bool)
     return points[:, 2] > min(heights) + config.plane_distance
 
 
+def estimate_normals(points: np.ndarray, radius: float) -> np.ndarray:
+    """Unit normals (unoriented) from each point's neighbours within ``radius``."""
+    import open3d as o3d
+
+    if len(points) < 3:
+        return np.zeros_like(points, dtype=float)
+    pcd = _o3d(points)
+    pcd.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=radius, max_nn=20))
+    return np.asarray(pcd.normals)
+
+
 def object_cloud(observation: Observation, config: CloudConfig, rng: np.random.Generator) -> ObjectCloud:
-    """Robot-hidden observation -> the object's points with normals."""
+    """Robot-hidden observation -> the object's points (normals are left to whoever needs them)."""
     fused = fused_cloud(observation, config)
     keep = remove_support(fused.xyz, config, rng)
-    pts = fused.xyz[keep].astype(np.float64)
-    normals = np.zeros_like(pts)
-    if len(pts) >= 3:
-        import open3d as o3d
-
-        pcd = _o3d(pts)
-        pcd.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=3 * config.voxel_size + 0.005, max_nn=20))
-        normals = np.asarray(pcd.normals)
-    return ObjectCloud(pts, fused.rgb[keep], normals)
+    return ObjectCloud(fused.xyz[keep].astype(np.float64), fused.rgb[keep])
 
 
 def part_segments(cloud: ObjectCloud, config: CloudConfig, rng: np.random.Generator) -> list[np.ndarray]:
@@ -120,21 +128,17 @@ def part_segments(cloud: ObjectCloud, config: CloudConfig, rng: np.random.Genera
 
     These are the parts a hand can close on: handles, knobs, buttons, levers.
     """
-    import open3d as o3d
-
     remaining = np.arange(len(cloud.points))
-    pcd = _o3d(cloud.points)
     for _ in range(config.max_part_planes):
         if len(remaining) < max(3, config.segment_min_points):
             break
-        _plane_seed(rng)
-        _, inliers = pcd.select_by_index(remaining).segment_plane(config.plane_distance, 3, 200)
-        if len(inliers) < config.part_plane_min_fraction * len(cloud.points):
+        _, inliers = fit_plane(cloud.points[remaining], config.plane_distance, rng)
+        if inliers.sum() < config.part_plane_min_fraction * len(cloud.points):
             break
-        remaining = np.delete(remaining, np.asarray(inliers))
+        remaining = remaining[~inliers]
     if len(remaining) < config.segment_min_points:
         return []
-    labels = np.asarray(pcd.select_by_index(remaining).cluster_dbscan(config.dbscan_eps, config.dbscan_min_points))
+    labels = np.asarray(_o3d(cloud.points[remaining]).cluster_dbscan(config.dbscan_eps, config.dbscan_min_points))
     segments = []
     for label in range(labels.max(initial=-1) + 1):
         idx = remaining[labels == label]

@@ -39,8 +39,8 @@ class FusedCloud:
 
 @dataclass(frozen=True)
 class FusionConfig:
-    center: tuple[float, float, float]  # workspace cube centre, world (m)
-    half_extent: float  # half side of the workspace cube (m)
+    center: tuple[float, float, float] = (0.5, 0.0, 0.4)  # workspace cube centre, world (m)
+    half_extent: float = 0.6  # half side of the workspace cube (m): the table top in front of the robot
     voxel_size: float = 0.005  # m; 0 keeps every point
     outlier_neighbors: int = 0  # statistical outlier removal: k neighbours; 0 disables it
     outlier_std_ratio: float = 2.0  # ... drop points whose mean k-NN distance exceeds mean + ratio * std
@@ -49,21 +49,22 @@ class FusionConfig:
 def _to_world_cropped(cloud: CameraCloud, center: torch.Tensor, half_extent: float) -> tuple[torch.Tensor, torch.Tensor]:
     T = torch.as_tensor(np.asarray(cloud.T_world_cloud, dtype=np.float32))
     xyz = torch.from_numpy(np.ascontiguousarray(cloud.xyz, dtype=np.float32))
-    world = xyz @ T[:3, :3].T + T[:3, 3]
-    inside = ((world - center).abs() <= half_extent).all(dim=1)  # NaN compares False: dropped too
-    rgb = torch.from_numpy(cloud.rgb) if cloud.rgb is not None else torch.from_numpy(NO_COLOUR).expand(len(xyz), 3)
-    return world[inside], rgb[inside]
+    world = torch.addmm(T[:3, 3], xyz, T[:3, :3].T)
+    inside = torch.nonzero(((world - center).abs_() <= half_extent).all(dim=1)).squeeze(1)  # NaN compares False
+    rgb = torch.from_numpy(cloud.rgb).index_select(0, inside) if cloud.rgb is not None else torch.from_numpy(NO_COLOUR).expand(len(inside), 3)
+    return world.index_select(0, inside), rgb
 
 
 def voxel_downsample(xyz: torch.Tensor, rgb: torch.Tensor, origin: torch.Tensor, voxel_size: float, cells: int) -> tuple[torch.Tensor, torch.Tensor]:
     """Mean position and colour per occupied voxel of a grid of ``cells``^3 starting at ``origin``."""
-    k = ((xyz - origin) / voxel_size).floor().long().clamp_(0, cells - 1)
+    k = ((xyz - origin) / voxel_size).long().clamp_(0, cells - 1)  # points are inside the grid: trunc = floor
     key = (k[:, 0] * cells + k[:, 1]) * cells + k[:, 2]
     _, inverse, counts = torch.unique(key, return_inverse=True, return_counts=True)
     n = len(counts)
-    values = torch.cat([xyz.double(), rgb.double()], dim=1)
-    sums = torch.stack([torch.bincount(inverse, weights=values[:, i], minlength=n) for i in range(6)], dim=1)
-    means = sums / counts[:, None]
+    # One weighted bincount over (voxel, channel) pairs instead of one per channel.
+    values = torch.cat([xyz, rgb.float()], dim=1).reshape(-1)
+    slots = (inverse[:, None] * 6 + torch.arange(6)).reshape(-1)
+    means = torch.bincount(slots, weights=values, minlength=6 * n).reshape(n, 6) / counts[:, None]
     return means[:, :3].float(), means[:, 3:].round().to(torch.uint8)
 
 

@@ -27,6 +27,7 @@ VIEWS: tuple[str, ...] = ("top", "front", "back", "left", "right")
 CHANNELS: tuple[str, ...] = ("r", "g", "b", "x", "y", "z", "depth", "occupancy")
 EMPTY_VALUE = 0.0
 DEFAULT_RESOLUTION = 128
+DEPTH_STEP = 1e-5  # m: depth is z-buffered and reported in steps of 10 um
 
 # Per view, rows: image right (+u), image down (+v), viewing direction (into the cube), all in
 # world coordinates. right x down = direction, like an optical frame (x right, y down, z forward).
@@ -74,34 +75,33 @@ def render_views(
     """
     n_views, pixels = len(VIEWS), resolution * resolution
     points = torch.from_numpy(np.ascontiguousarray(xyz, dtype=np.float32)).reshape(-1, 3)
+    centre = torch.tensor(center, dtype=torch.float32)
+    inside = torch.nonzero(((points - centre).abs() <= half_extent).all(dim=1)).squeeze(1)  # NaN compares False
+    points = points.index_select(0, inside)
     n = len(points)
     axes = torch.from_numpy(VIEW_AXES.reshape(-1, 3))
-    offset = torch.from_numpy(VIEW_AXES.reshape(-1, 3) @ np.asarray(center, dtype=np.float32) - half_extent)
+    offset = axes @ centre - half_extent
     # (V, 3, N): per view the right, down and depth coordinates measured from the cube corner;
     # this layout keeps every per-coordinate row contiguous (transposed views were 5x slower).
     local = (axes @ points.T - offset[:, None]).reshape(n_views, 3, n)
-    valid = ((local >= 0) & (local <= 2 * half_extent)).all(dim=1)  # NaN compares False
     ij = (local[:, :2] * (resolution / (2 * half_extent))).long().clamp_(0, resolution - 1)
     flat = (torch.arange(n_views)[:, None] * pixels + ij[:, 1] * resolution + ij[:, 0]).reshape(-1)
 
-    # One integer z-buffer pass: key = (depth in 10 um steps) << 32 | point index, so the minimum
-    # per pixel is the nearest point, ties going to the lowest index (deterministic). Invalid
-    # points carry the "empty" key and never win.
+    # One integer z-buffer pass: key = (depth in DEPTH_STEP units) << 32 | point index, so the
+    # minimum per pixel is the nearest point, ties going to the lowest index (deterministic), and
+    # the depth is read back from the key without another gather.
     empty = torch.iinfo(torch.int64).max
-    index = torch.arange(n).repeat(n_views)
-    key = torch.where(valid.reshape(-1), ((local[:, 2].reshape(-1) * 1e5).long() << 32) | index, empty)
-    best = torch.full((n_views * pixels,), empty, dtype=torch.long).scatter_reduce_(0, flat, key, "amin")
+    key = ((local[:, 2].clamp(min=0.0) / DEPTH_STEP).long() << 32) | torch.arange(n)
+    best = torch.full((n_views * pixels,), empty, dtype=torch.long).scatter_reduce_(0, flat, key.reshape(-1), "amin")
     hit = best != empty
-    winner = torch.where(hit, best & 0xFFFFFFFF, n)  # n = the marker row of the tables below
-    view_offset = torch.arange(n_views).repeat_interleave(pixels) * n
+    winner = torch.where(hit, best & 0xFFFFFFFF, n)  # n = the empty-marker row of the table below
 
-    # Row n of each table is the empty-pixel marker, so empty pixels need no masking.
     features = torch.full((n + 1, 6), EMPTY_VALUE)
-    features[:n, :3] = torch.from_numpy(np.ascontiguousarray(rgb, dtype=np.uint8)).reshape(-1, 3).float() / 255.0
+    colours = torch.from_numpy(np.ascontiguousarray(rgb, dtype=np.uint8)).reshape(-1, 3).index_select(0, inside)
+    features[:n, :3] = colours.float() / 255.0
     features[:n, 3:] = points
-    depth = torch.cat([local[:, 2].reshape(-1), torch.tensor([EMPTY_VALUE])])
-    depth_out = depth[torch.where(hit, view_offset + winner, n_views * n)]
-    out = torch.cat([features[winner], depth_out[:, None], hit.float()[:, None]], dim=1)
+    depth = torch.where(hit, (best >> 32).float() * DEPTH_STEP, EMPTY_VALUE)
+    out = torch.cat([features[winner], depth[:, None], hit.float()[:, None]], dim=1)
     return out.reshape(n_views, resolution, resolution, len(CHANNELS)).permute(0, 3, 1, 2).contiguous().numpy()
 
 

@@ -3,7 +3,9 @@
 Perception's tests and benchmark need clouds whose true geometry is known (a box seen by two
 cameras, a robot in a known pose) without starting a simulator: a pinhole camera casts one ray
 per pixel and returns an organized cloud in its ROS optical frame (x right, y down, z forward),
-NaN where nothing is hit, exactly like a driver's PointCloud2.
+NaN where nothing is hit, exactly like a driver's PointCloud2. Camera poses come from
+``actaim2.sim.cameras`` (``look_at_optical``, the ring5 and Azure Kinect rigs), which is pure
+geometry and imports no simulator.
 """
 from __future__ import annotations
 
@@ -15,28 +17,6 @@ import pinocchio as pin
 
 from actaim2.perception.self_filter import set_configuration
 from actaim2.robots import RobotSpec
-
-
-def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
-    """T_world_optical of a camera at ``eye`` looking at ``target`` (image up ~ world ``up``)."""
-    eye, target, up = (np.asarray(a, dtype=float) for a in (eye, target, up))
-    z = target - eye
-    z /= np.linalg.norm(z)
-    x = np.cross(z, up)
-    if np.linalg.norm(x) < 1e-9:  # looking along `up`: any perpendicular image x will do
-        x = np.cross(z, [1.0, 0.0, 0.0])
-    x /= np.linalg.norm(x)
-    T = np.eye(4)
-    T[:3, :3] = np.stack([x, np.cross(z, x), z], axis=1)
-    T[:3, 3] = eye
-    return T
-
-
-def ring_cameras(n: int, target, radius: float, height: float, start_deg: float = 0.0) -> list[np.ndarray]:
-    """``n`` cameras evenly spaced on a horizontal circle around ``target``, all looking at it."""
-    target = np.asarray(target, dtype=float)
-    angles = np.deg2rad(start_deg) + np.arange(n) * 2 * np.pi / n
-    return [look_at(target + [radius * np.cos(a), radius * np.sin(a), height - target[2]], target) for a in angles]
 
 
 def box_mesh(center, size) -> o3d.geometry.TriangleMesh:

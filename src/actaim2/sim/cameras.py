@@ -22,7 +22,6 @@ from scipy.spatial.transform import Rotation
 from actaim2.geometry import T_ENTITY_OPTICAL
 
 RIGS = ("ring5", "azure_kinect")
-AZURE_KINECT_MODES = ("nfov_binned", "nfov_unbinned")
 
 
 @dataclass(frozen=True)
@@ -204,7 +203,7 @@ def azure_kinect(
     axis passes through the target (the 6-degree tilt is compensated).
     """
     if mode not in AZURE_KINECT_NFOV:
-        raise ValueError(f"unknown Azure Kinect mode '{mode}': use one of {AZURE_KINECT_MODES}")
+        raise ValueError(f"unknown Azure Kinect mode '{mode}': use one of {list(AZURE_KINECT_NFOV)}")
     target = np.asarray(target, dtype=float)
     to_robot = np.asarray(robot_xy, dtype=float) - target[:2]
     base_azimuth = np.arctan2(to_robot[1], to_robot[0]) if np.linalg.norm(to_robot) > 1e-9 else np.pi
@@ -224,16 +223,12 @@ def azure_kinect(
     ]
 
 
-def make_rig(
-    rig: str,
-    target: np.ndarray,
-    robot_xy: np.ndarray = np.zeros(2),
-    width: int = 0,
-    height: int = 0,
-    azure_kinect_mode: str = "nfov_binned",
-) -> list[CameraSpec]:
-    """A rig by name. ``width``/``height`` of 0 keep the rig's default resolution (ring5 only:
-    the Azure Kinect's resolution follows from its mode)."""
+def make_rig(rig: str, target: np.ndarray, robot_xy: np.ndarray = np.zeros(2), width: int = 0, height: int = 0) -> list[CameraSpec]:
+    """A rig by name; ``width``/``height`` of 0 keep the rig's default resolution.
+
+    The Azure Kinect only has its two NFOV depth resolutions: 320x288 (binned, the default)
+    and 640x576 (unbinned); the size selects the mode.
+    """
     if rig == "ring5":
         size = {}
         if width > 0:
@@ -242,5 +237,11 @@ def make_rig(
             size["height"] = height
         return ring5(target, robot_xy, **size)
     if rig == "azure_kinect":
-        return azure_kinect(target, robot_xy, mode=azure_kinect_mode)
+        if (width, height) == (0, 0):
+            return azure_kinect(target, robot_xy)
+        for mode, intrinsics in AZURE_KINECT_NFOV.items():
+            if (intrinsics["width"], intrinsics["height"]) == (width, height):
+                return azure_kinect(target, robot_xy, mode=mode)
+        sizes = [f"{m['width']}x{m['height']}" for m in AZURE_KINECT_NFOV.values()]
+        raise ValueError(f"the Azure Kinect NFOV depth camera is {' or '.join(sizes)}, not {width}x{height}")
     raise ValueError(f"unknown camera rig '{rig}': use one of {RIGS}")

@@ -169,3 +169,102 @@ def _quintic(p0, v0, acc0, p1, v1, acc1, T: float, s: float) -> tuple[np.ndarray
     q = p0 + v0 * s + 0.5 * acc0 * s**2 + a3 * s**3 + a4 * s**4 + a5 * s**5
     qd = v0 + acc0 * s + 3.0 * a3 * s**2 + 4.0 * a4 * s**3 + 5.0 * a5 * s**4
     return q, qd
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """How an executed trajectory ended (a FollowJointTrajectory result)."""
+
+    error_code: int
+    message: str = ""
+
+
+class ArmController:
+    """The joint_trajectory_controller's state machine: follow, check tolerances, hold.
+
+    ``command(t)`` gives the drive targets for time ``t``; ``check(t, q)`` reports an
+    :class:`Outcome` once the active trajectory finished (within ``goal_tolerance`` of its last
+    point by ``end + goal_time_tolerance``) or violated a path tolerance. After an outcome, or
+    :meth:`hold`, the controller holds a fixed position. A tolerance of 0 is not checked.
+    """
+
+    def __init__(self, joints: tuple[str, ...], q_hold: np.ndarray, goal_tolerance: float, goal_time_tolerance: float) -> None:
+        self.joints = tuple(joints)
+        self.default_goal_tolerance = np.full(len(joints), float(goal_tolerance))
+        self.default_goal_time_tolerance = float(goal_time_tolerance)
+        self.active: ActiveTrajectory | None = None
+        self._hold = np.asarray(q_hold, dtype=float).copy()
+        self._path_tolerance = np.zeros(len(joints))
+        self._goal_tolerance = self.default_goal_tolerance
+        self._goal_time_tolerance = self.default_goal_time_tolerance
+
+    def tolerances_from(self, names: list[str], values: list[float], default: np.ndarray) -> np.ndarray:
+        """Per-joint tolerances from (name, value) pairs; values <= 0 keep the default (the
+        FollowJointTrajectory convention: 0 = server default, -1 = no check is treated as 0)."""
+        out = default.copy()
+        for name, value in zip(names, values):
+            if name not in self.joints:
+                raise InvalidTrajectory(INVALID_JOINTS, f"tolerance given for unknown joint '{name}'")
+            if value > 0:
+                out[self.joints.index(name)] = value
+            elif value < 0:
+                out[self.joints.index(name)] = 0.0
+        return out
+
+    def start(
+        self,
+        command: TrajectoryCommand,
+        now: float,
+        q: np.ndarray,
+        qd: np.ndarray,
+        path_tolerance: np.ndarray | None = None,
+        goal_tolerance: np.ndarray | None = None,
+        goal_time_tolerance: float | None = None,
+    ) -> None:
+        """Replace whatever runs with a validated ``command`` (an empty one holds ``q``)."""
+        if len(command.times) == 0:
+            self.hold(q)
+            return
+        self.active = ActiveTrajectory(command, self.joints, now, np.asarray(q, float), np.asarray(qd, float))
+        self._path_tolerance = np.zeros(len(self.joints)) if path_tolerance is None else path_tolerance
+        self._goal_tolerance = self.default_goal_tolerance if goal_tolerance is None else goal_tolerance
+        self._goal_time_tolerance = self.default_goal_time_tolerance if goal_time_tolerance is None else goal_time_tolerance
+
+    def hold(self, q: np.ndarray) -> None:
+        """Stop following and hold ``q`` (JTC's hold position after an abort or cancel)."""
+        self.active = None
+        self._hold = np.asarray(q, dtype=float).copy()
+
+    def command(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        if self.active is None:
+            return self._hold, np.zeros_like(self._hold)
+        return self.active.sample(t)
+
+    def check(self, t: float, q: np.ndarray) -> Outcome | None:
+        """The outcome of the active trajectory at time ``t`` with joint positions ``q``, or None
+        while it is still running. A finished trajectory's last point is then held."""
+        if self.active is None:
+            return None
+        desired, _ = self.active.sample(t)
+        error = np.abs(np.asarray(q, float) - desired)
+        checked = self._path_tolerance > 0
+        if t < self.active.end_time:
+            if np.any(checked & (error > self._path_tolerance)):
+                i = int(np.argmax(checked & (error > self._path_tolerance)))
+                self.hold(q)
+                return Outcome(PATH_TOLERANCE_VIOLATED, f"{self.joints[i]} is {error[i]:.4f} from its path (tolerance {self._path_tolerance[i]:.4f})")
+            return None
+        checked = self._goal_tolerance > 0
+        outside = checked & (error > self._goal_tolerance)
+        if not np.any(outside):
+            self.hold(desired)
+            return Outcome(SUCCESSFUL)
+        if t >= self.active.end_time + self._goal_time_tolerance:
+            i = int(np.argmax(outside))
+            self.hold(q)
+            return Outcome(
+                GOAL_TOLERANCE_VIOLATED,
+                f"{self.joints[i]} ended {error[i]:.4f} from its goal (tolerance {self._goal_tolerance[i]:.4f}) "
+                f"{self._goal_time_tolerance:.2f} s after the trajectory end",
+            )
+        return None

@@ -7,6 +7,7 @@ y down, z forward) is a sign flip of y and z (``T_OPENGL_OPTICAL``). Depth is th
 quantised to 1 mm, like a real ToF camera's uint16 millimetre depth image.
 
 All cameras are triggered before any picture is read, so lavapipe renders them back to back.
+Heavy visual meshes are decimated the first time an entity is seen (``render_meshes``).
 """
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ import sapien
 
 from actaim2.geometry import T_ENTITY_OPTICAL, T_OPENGL_OPTICAL
 from actaim2.sim.cameras import CameraFrame, CameraSpec
+from actaim2.sim.render_meshes import simplify_render_body
 
 SHADER = "minimal"
 _MM_TO_OPTICAL = (np.diag(T_OPENGL_OPTICAL)[:3] / 1000.0).astype(np.float32)
@@ -30,6 +32,7 @@ class SapienRenderer:
         self._scene = scene
         self._cameras = list(cameras)
         self._components: dict[str, sapien.render.RenderCameraComponent] = {}
+        self._seen: set[int] = set()  # entities whose visual meshes were already simplified
         for spec in self._cameras:
             near = min(0.01, 0.5 * spec.min_depth)
             fovy = 2.0 * np.arctan(0.5 * spec.height / spec.fy)
@@ -60,6 +63,10 @@ class SapienRenderer:
     def render(self, hidden: set[int] = frozenset()) -> dict[str, CameraFrame]:
         """One frame per camera; entities whose per_scene_id is in ``hidden`` are invisible for
         this frame only: they neither appear nor occlude, as if they had been taken away."""
+        for entity in self._scene.entities:
+            if entity.per_scene_id not in self._seen:
+                self._seen.add(entity.per_scene_id)
+                simplify_render_body(entity)
         hidden_bodies = self._render_bodies(set(hidden))
         for body in hidden_bodies:
             body.visibility = 0.0

@@ -80,7 +80,7 @@ def storage_furniture(rng: np.random.Generator, object_id: str) -> ObjectModel:
                 add_drawer(b, f"drawer_{n_drawer}", "base", x0, (ylo, yhi, z0, z), t / 2, d - 0.05, handle, rng, pal)
                 n_drawer += 1
         else:
-            double = w > 0.55 and rng.random() < 0.5
+            double = w > 0.5  # one wide door would swing into the robot
             zh = z0 + rng.uniform(0.6, 0.85) * hrow
             panel_handle = _pick(rng, ["bar", "knob"])
             if double:
@@ -148,8 +148,9 @@ def door(rng: np.random.Generator, object_id: str) -> ObjectModel:
 def refrigerator(rng: np.random.Generator, object_id: str) -> ObjectModel:
     """A fridge body with one door, a freezer door over (or under) the fridge door, or two side-by-side doors."""
     pal = Palette.sample(rng)
-    w, d, h, plinth = rng.uniform(0.42, 0.56), rng.uniform(0.4, 0.52), rng.uniform(0.85, 1.02), rng.uniform(0.04, 0.08)
     layout = _pick(rng, ["single", "freezer_top", "freezer_bottom", "side_by_side"])
+    w = rng.uniform(0.48, 0.58) if layout == "side_by_side" else rng.uniform(0.38, 0.46)
+    d, h, plinth = rng.uniform(0.4, 0.52), rng.uniform(0.85, 1.02), rng.uniform(0.04, 0.08)
     b = Builder(object_id, "refrigerator", {"front_distance": 0.68, "layout": layout})
     b.base.shapes += [box((-d / 2 + 0.04, -w / 2 + 0.03, 0.0), (d / 2, w / 2 - 0.03, plinth), pal.accent),
                       box((-d / 2, -w / 2, plinth), (d / 2, w / 2, h), pal.body)]
@@ -180,9 +181,9 @@ def faucet(rng: np.random.Generator, object_id: str) -> ObjectModel:
     """A faucet on a counter: a single lever, two handles, or a lever and a swivelling spout."""
     pal = Palette.sample(rng)
     metal = (0.78, 0.78, 0.8, 1.0) if rng.random() < 0.7 else pal.handle
-    cw, cd, ch = rng.uniform(0.38, 0.55), rng.uniform(0.3, 0.38), rng.uniform(0.3, 0.42)
+    cw, cd, ch = rng.uniform(0.38, 0.55), rng.uniform(0.3, 0.38), rng.uniform(0.22, 0.32)
     layout = _pick(rng, ["single_lever", "two_handles", "lever_and_spout"])
-    b = Builder(object_id, "faucet", {"front_distance": 0.42, "layout": layout})
+    b = Builder(object_id, "faucet", {"front_distance": 0.36, "layout": layout})
     b.base.shapes += [box((-cd / 2, -cw / 2, 0.0), (cd / 2, cw / 2, ch), pal.body),
                       box((-cd / 2 + 0.05, -cw / 2 + 0.06, ch - 0.004), (cd / 2 - 0.12, cw / 2 - 0.06, ch + 0.002), pal.accent)]
     xf = cd / 2 - 0.07
@@ -231,7 +232,7 @@ def switch(rng: np.random.Generator, object_id: str) -> ObjectModel:
     n = int(rng.integers(1, 4 if kind == "toggle" else 3))
     pitch = rng.uniform(0.05, 0.065)
     w = n * pitch + 0.05
-    dp, hz = rng.uniform(0.07, 0.1), rng.uniform(0.4, 0.55)
+    dp, hz = rng.uniform(0.07, 0.1), rng.uniform(0.52, 0.62)
     b = Builder(object_id, "switch", {"front_distance": 0.5, "kind": kind})
     b.base.shapes += [box((-0.14, -0.14, 0.0), (0.14, 0.14, 0.02), pal.accent),
                       box((-0.025, -0.025, 0.02), (0.025, 0.025, hz - 0.12), pal.accent),
@@ -261,11 +262,12 @@ def switch(rng: np.random.Generator, object_id: str) -> ObjectModel:
 
 
 def window(rng: np.random.Generator, object_id: str) -> ObjectModel:
-    """A window on a low wall: sliding sash(es) (horizontal or vertical) or a casement."""
+    """A window on a low wall: a sash sliding sideways or upwards, or one or two casements."""
     pal = Palette.sample(rng)
     glass = (0.6, 0.75, 0.85, 1.0)
-    W, H, hw, fr, fd = rng.uniform(0.45, 0.65), rng.uniform(0.36, 0.5), rng.uniform(0.22, 0.32), 0.04, 0.08
-    layout = _pick(rng, ["horizontal", "double_horizontal", "vertical", "double_hung", "casement"])
+    layout = _pick(rng, ["horizontal", "vertical", "casement", "casement_pair"])
+    W = rng.uniform(0.34, 0.42) if layout == "casement" else rng.uniform(0.45, 0.62)
+    H, hw, fr, fd = rng.uniform(0.36, 0.5), rng.uniform(0.22, 0.32), 0.04, 0.08
     b = Builder(object_id, "window", {"front_distance": 0.55, "layout": layout})
     b.base.shapes += [
         box((-0.07, -W / 2 - fr, 0.0), (0.07, W / 2 + fr, hw), pal.accent),
@@ -277,42 +279,37 @@ def window(rng: np.random.Generator, object_id: str) -> ObjectModel:
     z0, z1 = hw + fr, hw + fr + H
     zc = (z0 + z1) / 2
     sash_t, rail = 0.02, 0.03
-
-    def sash(link, hy: float, hz: float) -> None:
+    if layout in ("horizontal", "vertical"):
+        # the sash covers half the opening and slides over the fixed pane behind the other half
+        b.base.shapes.append(box((0.0, -W / 2, z0), (0.006, W / 2, z1), glass))
+        if layout == "horizontal":
+            side = _pick(rng, [-1.0, 1.0])
+            hy, hz = W / 4 + 0.01, H / 2 - GAP
+            xyz, axis, travel = (-0.004, side * (W / 4 - 0.01 + GAP), zc), (0.0, -side, 0.0), W / 2 - 0.06
+            anchor, along = (-sash_t, side * (hy - rail / 2), rng.uniform(-0.25, 0.15) * hz), (0, 0, 1)
+        else:
+            hy, hz = W / 2 - GAP, H / 4 + 0.01
+            xyz, axis, travel = (-0.004, 0.0, zc - (H / 4 - 0.01 + GAP)), (0.0, 0.0, 1.0), H / 2 - 0.06
+            anchor, along = (-sash_t, 0.0, -(hz - rail / 2)), (0, 1, 0)  # on the bottom rail, as a lift handle
+        link = b.add_part("sash_0", "prismatic", "base", xyz, axis, 0.0, travel, rng.uniform(2.0, 6.0), "sash")
         link.shapes += [box((-sash_t, -hy, -hz), (0.0, hy, -hz + rail), pal.panel),
                         box((-sash_t, -hy, hz - rail), (0.0, hy, hz), pal.panel),
                         box((-sash_t, -hy, -hz + rail), (0.0, -hy + rail, hz - rail), pal.panel),
                         box((-sash_t, hy - rail, -hz + rail), (0.0, hy, hz - rail), pal.panel),
                         box((-sash_t / 2 - 0.003, -hy + rail, -hz + rail), (-sash_t / 2 + 0.003, hy - rail, hz - rail), glass)]
-
-    if layout in ("horizontal", "double_horizontal"):
-        hy, hz = W / 4 + 0.01, H / 2 - GAP
-        for i, side in enumerate([-1.0, 1.0][: 1 if layout == "horizontal" else 2]):
-            xf = -0.005 - i * (sash_t + 0.006)  # the second sash runs in front of the first
-            name = f"sash_{i}"
-            link = b.add_part(name, "prismatic", "base", (xf, side * (W / 4 - 0.01 + GAP), zc), (0.0, -side, 0.0),
-                              0.0, W / 2 - 0.06, rng.uniform(2.0, 6.0), "sash")
-            sash(link, hy, hz)
-            kind = _pick(rng, ["bar", "knob"])
-            anchor = (-sash_t, side * (hy - rail / 2), rng.uniform(-0.25, 0.15) * hz)
-            g = add_handle(link, kind, anchor, (-1, 0, 0), (0, 0, 1), rng, pal.handle, length=rng.uniform(0.08, 0.13))
-            b.add_handle(link, kind, g)
-    elif layout in ("vertical", "double_hung"):
-        hy, hz = W / 2 - GAP, H / 4 + 0.01
-        specs = [("sash_0", -1.0, -0.005)] + ([("sash_1", 1.0, -0.005 - sash_t - 0.006)] if layout == "double_hung" else [])
-        for name, side, xf in specs:
-            # the lower sash opens upwards, the upper one downwards; the upper one runs in front
-            link = b.add_part(name, "prismatic", "base", (xf, 0.0, zc + side * (H / 4 - 0.01 + GAP)), (0.0, 0.0, -side),
-                              0.0, H / 2 - 0.06, rng.uniform(2.0, 6.0), "sash")
-            sash(link, hy, hz)
-            zrail = -(hz - rail / 2)  # on the bottom rail: nothing slides in front of it there
-            g = add_handle(link, "bar", (-sash_t, 0.0, zrail), (-1, 0, 0), (0, 1, 0), rng, pal.handle, length=rng.uniform(0.09, 0.14))
-            b.add_handle(link, "bar", g)
+        kind = _pick(rng, ["bar", "knob"]) if layout == "horizontal" else "bar"
+        g = add_handle(link, kind, anchor, (-1, 0, 0), along, rng, pal.handle, length=rng.uniform(0.08, 0.13))
+        b.add_handle(link, kind, g)
     else:
-        hinge = _pick(rng, ["left", "right"])
+        kind = _pick(rng, ["bar", "knob"])
         zh = zc + rng.uniform(-0.1, 0.1) * H
-        add_hinged_panel(b, "sash_0", "base", (-W / 2 + GAP, W / 2 - GAP, z0 + GAP, z1 - GAP), -0.005, sash_t, hinge,
-                         rng.uniform(70, 90) * deg, _pick(rng, ["bar", "knob"]), zh, rng, pal, semantic="sash")
+        if layout == "casement":
+            panels = [("sash_0", (-W / 2 + GAP, W / 2 - GAP), _pick(rng, ["left", "right"]))]
+        else:
+            panels = [("sash_0", (GAP, W / 2 - GAP), "left"), ("sash_1", (-W / 2 + GAP, -GAP), "right")]
+        for name, (ylo, yhi), hinge in panels:
+            add_hinged_panel(b, name, "base", (ylo, yhi, z0 + GAP, z1 - GAP), -0.005, sash_t, hinge,
+                             rng.uniform(70, 90) * deg, kind, zh, rng, pal, semantic="sash", inset=0.04)
     return b.build()
 
 

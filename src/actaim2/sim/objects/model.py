@@ -26,7 +26,7 @@ Vec3 = tuple[float, float, float]
 RGBA = tuple[float, float, float, float]
 
 # Version of the generator's output: bump it to invalidate cached object folders.
-FORMAT_VERSION = 1
+FORMAT_VERSION = 4
 
 
 @dataclass(frozen=True)
@@ -69,7 +69,9 @@ class Handle:
 
     ``position`` is where the canonical TCP (between the fingertips) goes, ``approach`` the
     TCP z axis (the direction the gripper moves in), ``closing`` the TCP y axis (the finger
-    closing direction); the gripper is symmetric, so -closing is as good.
+    closing direction); the gripper is symmetric, so -closing is as good. ``depth`` is how far
+    the surface the handle is mounted on lies beyond ``position`` along ``approach``, ``span``
+    the handle's extent along the TCP x axis (where a hand pushing the part must stay clear).
     """
 
     link: str
@@ -78,6 +80,8 @@ class Handle:
     position: Vec3
     approach: Vec3
     closing: Vec3
+    depth: float = 0.0
+    span: float = 0.0
 
     def tcp_in_link(self) -> np.ndarray:
         """4x4 pose of the TCP in the link frame when grasping this handle."""

@@ -18,6 +18,10 @@ import numpy as np
 from .model import RGBA, Handle, Joint, Link, ObjectModel, Shape, Vec3
 
 GAP = 0.002  # clearance between neighbouring panels (m)
+# A robot at its home pose keeps its hand within ~0.42 m of its base (Panda's tcp is at 0.31 m):
+# a hinged panel, half-open towards the robot, must stay beyond that, so objects with hinged
+# panels stand farther away (see Builder.build).
+HOME_CLEARANCE = 0.44
 
 
 def box(lo: Vec3, hi: Vec3, rgba: RGBA) -> Shape:
@@ -67,6 +71,7 @@ class Builder:
     links: list[Link] = field(default_factory=lambda: [Link("base")])
     joints: list[Joint] = field(default_factory=list)
     handles: list[Handle] = field(default_factory=list)
+    reach: float = 0.0  # how far (m) a part reaches towards the robot, beyond the object's front, when half-open
 
     @property
     def base(self) -> Link:
@@ -81,17 +86,25 @@ class Builder:
         return link
 
     def add_handle(self, link: Link, kind: str, grasp: "Grasp") -> None:
-        self.handles.append(Handle(link.name, f"{link.name}_joint", kind, grasp.position, grasp.approach, grasp.closing))
+        self.handles.append(Handle(link.name, f"{link.name}_joint", kind, tuple(map(float, grasp.position)),
+                                   tuple(map(float, grasp.approach)), tuple(map(float, grasp.closing)),
+                                   float(grasp.depth), float(grasp.span)))
 
     def build(self) -> ObjectModel:
+        if self.reach > 0.0:
+            self.params["front_distance"] = float(max(self.params.get("front_distance", 0.0), HOME_CLEARANCE + self.reach))
         return ObjectModel(self.object_id, self.category, self.links, self.joints, self.handles, self.params)
 
 
 @dataclass(frozen=True)
 class Grasp:
+    """Where to grasp a handle, in its link frame (see :class:`actaim2.sim.objects.model.Handle`)."""
+
     position: Vec3
     approach: Vec3
     closing: Vec3
+    depth: float = 0.0
+    span: float = 0.0
 
 
 def add_handle(link: Link, kind: str, anchor: Vec3, normal: Vec3, along: Vec3, rng: np.random.Generator,
@@ -120,20 +133,20 @@ def add_handle(link: Link, kind: str, anchor: Vec3, normal: Vec3, along: Vec3, r
             link.shapes.append(cylinder(p + n * standoff / 2, 0.0065, standoff, axis_name(n), rgba))
         half = np.abs(u) * bar_len / 2 + np.abs(n) * thick / 2 + np.abs(closing) * thick / 2
         link.shapes.append(box(centre - half, centre + half, rgba))
-        return Grasp(tuple(centre), tuple(approach), tuple(closing))
+        return Grasp(tuple(centre), tuple(approach), tuple(closing), standoff + thick / 2, bar_len)
     if kind == "knob":
         stem = rng.uniform(0.022, 0.032)
         cap_r, cap_len = rng.uniform(0.014, 0.02), 0.02
         link.shapes.append(cylinder(a + n * stem / 2, 0.0075, stem, axis_name(n), rgba))
         centre = a + n * (stem + cap_len / 2)
         link.shapes.append(cylinder(centre, cap_r, cap_len, axis_name(n), rgba))
-        return Grasp(tuple(centre), tuple(approach), tuple(closing))
+        return Grasp(tuple(centre), tuple(approach), tuple(closing), stem + cap_len / 2, 2 * cap_r)
     if kind == "edge":
         depth, thick = rng.uniform(0.032, 0.04), 0.01
         width = length if length is not None else rng.uniform(0.1, 0.18)
         half = np.abs(u) * width / 2 + np.abs(closing) * thick / 2
         link.shapes.append(box(a - half, a + n * depth + half, rgba))
-        return Grasp(tuple(a + n * (depth - 0.014)), tuple(approach), tuple(closing))
+        return Grasp(tuple(a + n * (depth - 0.014)), tuple(approach), tuple(closing), depth - 0.014, width)
     raise ValueError(f"unknown handle kind {kind!r}")
 
 
@@ -201,6 +214,7 @@ def add_hinged_panel(b: Builder, name: str, parent: str, panel: tuple[float, flo
         xyz, axis, span, free = (front_x, y0, zc), (0.0, 0.0, 1.0), (0.0, W), W
         side = -1.0
     link = b.add_part(name, "revolute", parent, xyz, axis, 0.0, max_angle, rng.uniform(*damping), semantic)
+    b.reach = max(b.reach, W * np.sin(max_angle / 2))
     h = (z1 - z0) / 2
     link.shapes.append(box((-thickness, span[0], -h), (0.0, span[1], h), pal.panel))
     inset = inset if inset is not None else rng.uniform(0.045, 0.07)

@@ -1,0 +1,215 @@
+"""control_node: the /execute_keypose action server (Pinocchio IK + Ruckig trajectories).
+
+A thin adapter over ``actaim2.control``: it checks each goal, publishes the keypose on
+/keypose, and lets :class:`KeyposeRunner` plan it (IK with collision checks, straight lines,
+time-optimal jerk-limited timing) and execute it through :class:`RosExecutor`
+(FollowJointTrajectory or the JTC topic, GripperCommand, /joint_states). Feedback carries the
+phase and the progress along the trajectory; the result carries the reached tcp's position
+and orientation errors.
+
+Malformed goals (NaN, a non-unit quaternion, a frame other than `world`, an unknown phase,
+a velocity scaling outside (0, 1]) and goals arriving while another runs are accepted and
+immediately aborted with ``success = false`` and a message saying what was wrong: a plain
+rejection could not tell the client why. One goal runs at a time; cancel brakes the arm.
+"""
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import rclpy
+from actaim2_msgs.action import ExecuteKeypose
+from actaim2_msgs.msg import Keypose as KeyposeMsg
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from sensor_msgs.msg import PointCloud2
+
+from actaim2.control.collision import CollisionChecker, Workspace
+from actaim2.control.executor import KeyposeRunner, Outcome
+from actaim2.control.ik import IKOptions, IKSolver
+from actaim2.control.model import RobotModel
+from actaim2.control.planner import KeyposePlanner, PlannerOptions
+from actaim2.control.trajectory import Limits
+from actaim2.data.trajectory import Keypose
+from actaim2.geometry import is_unit_quaternion
+from actaim2.perception.cloud_codec import CloudFormatError
+from actaim2.robots import load_robot_spec
+from actaim2.runtime import apply_ros_defaults
+from actaim2_perception.pointcloud2 import from_msg
+
+from actaim2_control.ros_executor import ExecutionSettings, RosExecutor
+
+KEYPOSE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+_WS = Workspace()
+_PLAN = PlannerOptions()
+
+PARAMETERS = {
+    # name: (default, description)
+    "robot": ("panda", "robot preset (panda, kinova_j2s6s200) or a robot YAML file (any URDF: joints, flange, tcp offset)"),
+    "world_frame": ("world", "frame keyposes must be given in (the robot's URDF root is accepted too)"),
+    "arm_action": ("/joint_trajectory_controller/follow_joint_trajectory", "FollowJointTrajectory action of the arm controller"),
+    "jtc_topic": ("/joint_trajectory_controller/joint_trajectory", "JTC topic used when the arm action server is absent"),
+    "gripper_action": ("/gripper_controller/gripper_cmd", "GripperCommand action of the gripper controller"),
+    "gripper_max_effort": (40.0, "GripperCommand max_effort (N): the squeeze on a handle"),
+    "velocity_scaling": (0.5, "fraction of the velocity/acceleration/jerk limits for goals with velocity_scaling = 0"),
+    "server_wait": (3.0, "s to wait for an action server (arm: then fall back to the JTC topic)"),
+    "goal_tolerance": (0.02, "rad: /joint_states this close to the last trajectory point = the arm got there"),
+    "settle_timeout": (2.0, "s after the controller's result for /joint_states to reach the goal tolerance"),
+    "timeout_factor": (3.0, "the controller gets duration * factor + timeout_margin s to finish a trajectory"),
+    "timeout_margin": (5.0, "s, see timeout_factor"),
+    "gripper_timeout": (8.0, "s for a GripperCommand result"),
+    "joint_states_timeout": (1.0, "s: older /joint_states count as missing (the goal fails)"),
+    "stopped_velocity": (0.02, "rad/s: below this on every arm joint the arm counts as stopped after a cancel"),
+    "table_height": (_WS.table_height, "m, world z of the support plane no link may go below"),
+    "workspace_min": (list(_WS.box_min), "m, world: lower corner of the safety box every moving link stays in"),
+    "workspace_max": (list(_WS.box_max), "m, world: upper corner of the safety box"),
+    "use_cloud": (False, "also avoid the fused cloud (INIT and REACH), except near the grasp point"),
+    "cloud_topic": ("/fused_points", "PointCloud2 in world used when use_cloud is true"),
+    "cloud_clearance": (_PLAN.cloud_clearance, "m: cloud points this close to the grasp point are not obstacles"),
+    "approach_distance": (_PLAN.approach_distance, "m: straight last REACH segment when the arm starts off the approach axis"),
+    "via_speed_fraction": (_PLAN.via_speed_fraction, "speed at the pre-grasp via point, fraction of the line's top speed"),
+    "sample_period": (_PLAN.sample_period, "s between the trajectory points sent to the controller"),
+    "ik_restarts": (IKOptions().restarts, "random IK restarts after the attempt seeded from the current joints"),
+}
+
+
+class ControlNode(Node):
+    def __init__(self) -> None:
+        super().__init__("control_node")
+        for name, (default, description) in PARAMETERS.items():
+            self.declare_parameter(name, default, ParameterDescriptor(description=description))
+        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        spec = load_robot_spec(p["robot"])
+        self._frames = {p["world_frame"], spec.root_link}
+        self._default_scaling = float(p["velocity_scaling"])
+        robot = RobotModel(spec)
+        workspace = Workspace(float(p["table_height"]), tuple(p["workspace_min"]), tuple(p["workspace_max"]))
+        checker = CollisionChecker(robot, workspace)
+        solver = IKSolver(robot, checker, IKOptions(restarts=int(p["ik_restarts"])))
+        options = PlannerOptions(
+            approach_distance=float(p["approach_distance"]),
+            via_speed_fraction=float(p["via_speed_fraction"]),
+            sample_period=float(p["sample_period"]),
+            cloud_clearance=float(p["cloud_clearance"]),
+        )
+        self._planner = KeyposePlanner(robot, checker, solver, options)
+        group = ReentrantCallbackGroup()
+        settings = ExecutionSettings(
+            arm_action=p["arm_action"], jtc_topic=p["jtc_topic"], gripper_action=p["gripper_action"],
+            gripper_max_effort=float(p["gripper_max_effort"]), server_wait=float(p["server_wait"]),
+            goal_tolerance=float(p["goal_tolerance"]), settle_timeout=float(p["settle_timeout"]),
+            timeout_factor=float(p["timeout_factor"]), timeout_margin=float(p["timeout_margin"]),
+            gripper_timeout=float(p["gripper_timeout"]), joint_states_timeout=float(p["joint_states_timeout"]),
+            stopped_velocity=float(p["stopped_velocity"]), sample_period=options.sample_period,
+        )
+        self._executor = RosExecutor(self, spec, Limits.of(robot), settings, group)
+        self._runner = KeyposeRunner(self._planner, self._executor)
+        self._busy = threading.Lock()
+        self._keypose_pub = self.create_publisher(KeyposeMsg, "/keypose", KEYPOSE_QOS)
+        if p["use_cloud"]:
+            self.create_subscription(PointCloud2, p["cloud_topic"], self._on_cloud, qos_profile_sensor_data, callback_group=group)
+        self._server = ActionServer(
+            self, ExecuteKeypose, "/execute_keypose", self._execute,
+            goal_callback=lambda _: GoalResponse.ACCEPT, cancel_callback=lambda _: CancelResponse.ACCEPT,
+            callback_group=group,
+        )
+        self.get_logger().info(
+            f"{spec.name}: /execute_keypose ready (arm {p['arm_action']}, gripper {p['gripper_action']}, "
+            f"default velocity scaling {self._default_scaling:g})"
+        )
+
+    def _on_cloud(self, msg: PointCloud2) -> None:
+        if msg.header.frame_id not in self._frames:
+            self.get_logger().warning(f"cloud in '{msg.header.frame_id}', not world: ignored", throttle_duration_sec=10.0)
+            return
+        try:
+            xyz = from_msg(msg).xyz
+        except CloudFormatError as exc:
+            self.get_logger().warning(f"unreadable cloud: {exc}", throttle_duration_sec=10.0)
+            return
+        self._planner.set_cloud(xyz[np.all(np.isfinite(xyz), axis=1)])
+
+    def _check_goal(self, goal: ExecuteKeypose.Goal) -> str:
+        """What is wrong with a goal ("" when nothing)."""
+        k = goal.keypose
+        position = np.array([k.pose.position.x, k.pose.position.y, k.pose.position.z])
+        quat = np.array([k.pose.orientation.x, k.pose.orientation.y, k.pose.orientation.z, k.pose.orientation.w])
+        if k.header.frame_id not in self._frames:
+            return f"keypose frame '{k.header.frame_id}' is not one of {sorted(self._frames)}"
+        if not np.all(np.isfinite(position)):
+            return f"keypose position {position.tolist()} is not finite"
+        if not is_unit_quaternion(quat):
+            return f"keypose orientation {quat.tolist()} is not a unit quaternion (x, y, z, w)"
+        if k.phase > KeyposeMsg.PHASE_MANIPULATE:
+            return f"unknown phase {k.phase}: expected 0..3 (INIT, REACH, GRASP, MANIPULATE)"
+        if not (np.isfinite(goal.velocity_scaling) and 0.0 <= goal.velocity_scaling <= 1.0):
+            return f"velocity_scaling {goal.velocity_scaling} is not in (0, 1] (0 = the node's default)"
+        return ""
+
+    def _execute(self, handle: ServerGoalHandle) -> ExecuteKeypose.Result:
+        goal = handle.request
+        problem = self._check_goal(goal)
+        if problem:
+            return self._finish(handle, Outcome(False, f"rejected: {problem}", float("nan"), float("nan"), "invalid"))
+        if not self._busy.acquire(blocking=False):
+            return self._finish(handle, Outcome(False, "rejected: busy, another keypose is executing", float("nan"), float("nan"), "busy"))
+        try:
+            k = goal.keypose
+            self._keypose_pub.publish(k)
+            keypose = Keypose(
+                int(k.phase),
+                np.array([k.pose.position.x, k.pose.position.y, k.pose.position.z]),
+                np.array([k.pose.orientation.x, k.pose.orientation.y, k.pose.orientation.z, k.pose.orientation.w]),
+                bool(k.gripper_closed),
+            )
+            scaling = float(goal.velocity_scaling) or self._default_scaling
+            self._executor.cancel_requested = lambda: handle.is_cancel_requested
+
+            def feedback(phase: int, progress: float) -> None:
+                handle.publish_feedback(ExecuteKeypose.Feedback(phase=phase, progress=float(progress)))
+
+            try:
+                outcome = self._runner.run(keypose, scaling, feedback)
+            except RuntimeError as exc:  # no /joint_states: nothing was moved
+                outcome = Outcome(False, str(exc), float("nan"), float("nan"), "joint_states")
+            return self._finish(handle, outcome)
+        finally:
+            self._executor.cancel_requested = lambda: False
+            self._busy.release()
+
+    def _finish(self, handle: ServerGoalHandle, outcome: Outcome) -> ExecuteKeypose.Result:
+        result = ExecuteKeypose.Result(
+            success=outcome.success, message=outcome.message,
+            position_error=outcome.position_error, orientation_error=outcome.orientation_error,
+        )
+        if handle.is_cancel_requested and not outcome.success:
+            handle.canceled()
+        elif outcome.success:
+            handle.succeed()
+        else:
+            handle.abort()
+        log = self.get_logger().info if outcome.success else self.get_logger().warning
+        log(f"keypose: {outcome.message} (position error {outcome.position_error * 1000:.1f} mm, "
+            f"orientation error {np.degrees(outcome.orientation_error):.2f} deg)")
+        return result
+
+
+def main(args: list[str] | None = None) -> None:
+    apply_ros_defaults()
+    rclpy.init(args=args)
+    node = ControlNode()
+    executor = MultiThreadedExecutor(num_threads=4)
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()

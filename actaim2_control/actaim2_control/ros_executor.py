@@ -1,0 +1,214 @@
+"""The control node's executor: FollowJointTrajectory (or the JTC topic) and GripperCommand.
+
+Implements :class:`actaim2.control.executor.Executor` over ROS 2 the way a real cell works:
+  * arm: a FollowJointTrajectory goal to the controller named by a parameter; when no such
+    action server appears within ``server_wait`` the JointTrajectory goes to the JTC topic
+    instead (no result there: completion comes from /joint_states alone);
+  * completion: the action result, then /joint_states within ``goal_tolerance`` of the last
+    point, each with a timeout (wall clock, so a dead simulator cannot hang a goal);
+  * cancel: a Ruckig stop from the measured state at full limits replaces the running
+    trajectory (the controller's "new goal replaces the running one"), then the arm must be
+    still - well within 0.5 s;
+  * gripper: a GripperCommand; a gripper stalled on an object counts as success.
+Waiting happens in the action server's execute thread; subscriptions and action-client
+responses are handled by the node's other executor threads.
+"""
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from builtin_interfaces.msg import Duration
+from control_msgs.action import FollowJointTrajectory, GripperCommand
+from rclpy.action import ActionClient
+from rclpy.callback_groups import CallbackGroup
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
+from trajectory_msgs.msg import JointTrajectoryPoint
+
+from actaim2.control.executor import StepResult
+from actaim2.control.trajectory import JointPlanner, JointTrajectory, Limits, State, sample
+from actaim2.robots import RobotSpec
+
+POLL = 0.01  # s between checks while waiting
+
+
+@dataclass(frozen=True)
+class ExecutionSettings:
+    arm_action: str
+    jtc_topic: str
+    gripper_action: str
+    gripper_max_effort: float
+    server_wait: float  # s to wait for an action server before giving up (arm: before the topic fallback)
+    goal_tolerance: float  # rad: /joint_states this close to the last point = reached
+    settle_timeout: float  # s after the controller's result (or the trajectory's end) to get there
+    timeout_factor: float  # the controller gets duration * factor + margin to report a result
+    timeout_margin: float
+    gripper_timeout: float
+    joint_states_timeout: float  # s: /joint_states older than this count as missing
+    stopped_velocity: float  # rad/s: every arm joint slower than this = the arm stands still
+    sample_period: float
+
+
+class RosExecutor:
+    """Arm and gripper of one robot through ROS 2 controllers, for :class:`KeyposeRunner`."""
+
+    def __init__(self, node: Node, spec: RobotSpec, limits: Limits, settings: ExecutionSettings, group: CallbackGroup):
+        self._node = node
+        self._spec = spec
+        self._full_limits = limits
+        self._settings = settings
+        self._arm = ActionClient(node, FollowJointTrajectory, settings.arm_action, callback_group=group)
+        self._gripper = ActionClient(node, GripperCommand, settings.gripper_action, callback_group=group)
+        self._topic = node.create_publisher(JointTrajectoryMsg, settings.jtc_topic, 10)
+        node.create_subscription(JointState, "/joint_states", self._on_joint_states, 10, callback_group=group)
+        self._stopper = JointPlanner(len(spec.arm_joints))
+        self._lock = threading.Lock()
+        self._positions: dict[str, float] = {}
+        self._velocities: dict[str, float] = {}
+        self._received = -np.inf
+        self.cancel_requested: Callable[[], bool] = lambda: False
+
+    # -- state ----------------------------------------------------------------------------
+    def _on_joint_states(self, msg: JointState) -> None:
+        with self._lock:
+            self._positions.update(zip(msg.name, msg.position))
+            if len(msg.velocity) == len(msg.name):
+                self._velocities.update(zip(msg.name, msg.velocity))
+            self._received = time.monotonic()
+
+    def wait_for_joint_states(self, timeout: float) -> bool:
+        return _wait(lambda: self._fresh_arm_state() is not None, timeout)
+
+    def _fresh_arm_state(self) -> State | None:
+        with self._lock:
+            if time.monotonic() - self._received > self._settings.joint_states_timeout:
+                return None
+            if any(j not in self._positions for j in self._spec.arm_joints):
+                return None
+            q = np.array([self._positions[j] for j in self._spec.arm_joints])
+            v = np.array([self._velocities.get(j, 0.0) for j in self._spec.arm_joints])
+        return State(q, v, np.zeros_like(q))
+
+    def arm_state(self) -> State:
+        state = self._fresh_arm_state()
+        if state is None:
+            raise RuntimeError(
+                f"no fresh /joint_states with the arm joints {list(self._spec.arm_joints)} "
+                f"(none within {self._settings.joint_states_timeout:g} s)"
+            )
+        return state
+
+    # -- arm ------------------------------------------------------------------------------
+    def follow(self, trajectory: JointTrajectory, on_progress: Callable[[float], None]) -> StepResult:
+        s = self._settings
+        msg = _trajectory_msg(trajectory)
+        use_action = self._arm.server_is_ready() or self._arm.wait_for_server(timeout_sec=s.server_wait)
+        if use_action:
+            goal = FollowJointTrajectory.Goal(trajectory=msg)
+            sent = self._arm.send_goal_async(goal)
+            if not _wait(sent.done, s.server_wait) or not sent.result().accepted:
+                return StepResult(False, f"{s.arm_action} did not accept the trajectory")
+            handle = sent.result()
+            result_future = handle.get_result_async()
+            done = result_future.done
+        else:
+            self._node.get_logger().warning(
+                f"no action server {s.arm_action} within {s.server_wait:g} s: sending to the JTC topic {s.jtc_topic}",
+                throttle_duration_sec=30.0,
+            )
+            self._topic.publish(msg)
+            end_of_motion = time.monotonic() + trajectory.duration
+            done = lambda: time.monotonic() >= end_of_motion  # noqa: E731 (no result on the topic)
+        start = time.monotonic()
+        deadline = start + trajectory.duration * s.timeout_factor + s.timeout_margin
+        while not done():
+            if self.cancel_requested():
+                return self._stop()
+            if time.monotonic() > deadline:
+                self._stop()
+                return StepResult(False, f"no result from {s.arm_action} within {deadline - start:.1f} s")
+            on_progress(min(1.0, (time.monotonic() - start) / max(trajectory.duration, 1e-6)))
+            time.sleep(POLL)
+        if use_action:
+            result = result_future.result().result
+            if result.error_code != FollowJointTrajectory.Result.SUCCESSFUL:
+                return StepResult(False, f"controller error {result.error_code}: {result.error_string}")
+        return self._settled(trajectory.positions[-1])
+
+    def _settled(self, goal: np.ndarray) -> StepResult:
+        """/joint_states within tolerance of the goal before the settle timeout."""
+        s = self._settings
+        error = lambda: float(np.max(np.abs(self.arm_state().position - goal)))  # noqa: E731
+        if _wait(lambda: error() <= s.goal_tolerance, s.settle_timeout):
+            return StepResult(True, "reached")
+        return StepResult(False, f"arm stopped {error():.4f} rad from the goal (tolerance {s.goal_tolerance:g} rad)")
+
+    def _stop(self) -> StepResult:
+        """Brake to a standstill within the full limits, replacing the running trajectory."""
+        s = self._settings
+        state = self.arm_state()
+        stop = sample([self._stopper.stop(state, self._full_limits)], self._spec.arm_joints, s.sample_period)
+        msg = _trajectory_msg(stop) if len(stop) else _trajectory_msg(_hold(self._spec, state.position))
+        if self._arm.server_is_ready():
+            self._arm.send_goal_async(FollowJointTrajectory.Goal(trajectory=msg))
+        else:
+            self._topic.publish(msg)
+        still = _wait(lambda: np.all(np.abs(self.arm_state().velocity) < s.stopped_velocity), stop.duration + s.settle_timeout)
+        return StepResult(False, "cancelled: arm stopped" if still else "cancelled: the arm did not come to rest")
+
+    # -- gripper --------------------------------------------------------------------------
+    def set_gripper(self, closed: bool) -> StepResult:
+        s = self._settings
+        if not (self._gripper.server_is_ready() or self._gripper.wait_for_server(timeout_sec=s.server_wait)):
+            return StepResult(False, f"no GripperCommand action server {s.gripper_action}")
+        goal = GripperCommand.Goal()
+        goal.command.position = float(self._spec.gripper_closed if closed else self._spec.gripper_open)
+        goal.command.max_effort = float(s.gripper_max_effort)
+        sent = self._gripper.send_goal_async(goal)
+        if not _wait(sent.done, s.server_wait) or not sent.result().accepted:
+            return StepResult(False, f"{s.gripper_action} did not accept the command")
+        result_future = sent.result().get_result_async()
+        if not _wait(result_future.done, s.gripper_timeout):
+            sent.result().cancel_goal_async()
+            return StepResult(False, f"no gripper result within {s.gripper_timeout:g} s")
+        result = result_future.result().result
+        word = "closed" if closed else "opened"
+        if result.reached_goal:
+            return StepResult(True, f"gripper {word}")
+        if result.stalled:
+            return StepResult(True, f"gripper {word}, stalled at {result.position:.4f} (holding an object)")
+        return StepResult(False, f"gripper neither reached {goal.command.position:g} nor stalled (at {result.position:.4f})")
+
+
+def _trajectory_msg(trajectory: JointTrajectory) -> JointTrajectoryMsg:
+    """A JointTrajectory message; a zero header stamp means "start now"."""
+    msg = JointTrajectoryMsg(joint_names=list(trajectory.joint_names))
+    for t, q, v, a in zip(trajectory.times, trajectory.positions, trajectory.velocities, trajectory.accelerations):
+        sec = int(t)
+        msg.points.append(
+            JointTrajectoryPoint(
+                positions=q.tolist(), velocities=v.tolist(), accelerations=a.tolist(),
+                time_from_start=Duration(sec=sec, nanosec=int(round((t - sec) * 1e9)) % 1_000_000_000),
+            )
+        )
+    return msg
+
+
+def _hold(spec: RobotSpec, position: np.ndarray) -> JointTrajectory:
+    """One point at the current position, shortly from now: the controller holds there."""
+    n = len(position)
+    return JointTrajectory(spec.arm_joints, np.array([0.05]), position[None], np.zeros((1, n)), np.zeros((1, n)))
+
+
+def _wait(predicate: Callable[[], bool], timeout: float) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(POLL)
+    return bool(predicate())

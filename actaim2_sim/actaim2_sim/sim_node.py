@@ -1,0 +1,395 @@
+"""sim_node: the SAPIEN simulation as ROS 2 sees a real robot cell.
+
+Publishes what the robot driver, the cameras and ros2_control publish on the real system
+(DESIGN.md): /joint_states, organized PointCloud2 clouds per camera in its optical frame,
+/tf_static (camera extrinsics, ``world -> <robot root>``), /clock (sim time), plus the
+privileged /object_state. Serves FollowJointTrajectory and GripperCommand like ros2_control's
+joint_trajectory_controller and gripper_action_controller, the JTC topic, and /reset_scene.
+
+Threading: one timer (mutually exclusive with /reset_scene and the JTC topic) steps physics,
+runs the controllers and renders the cameras when their sim-time period is due; action execute
+callbacks run in a reentrant group and just wait for the loop to report an outcome, so the
+node needs a MultiThreadedExecutor. Physics keeps priority: camera frames that fall due while
+the loop is behind are skipped, never queued.
+"""
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import rclpy
+from actaim2_msgs.srv import ResetScene
+from builtin_interfaces.msg import Time
+from control_msgs.action import FollowJointTrajectory, GripperCommand
+from rclpy.action import ActionServer, CancelResponse
+from rclpy.action.server import ServerGoalHandle
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState, PointCloud2
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from actaim2.runtime import apply_ros_defaults
+from actaim2.sim.env import SimEnv
+from actaim2.sim.gripper_action import GripperGoal, GripperOutcome
+from actaim2.sim.joint_trajectory import (
+    INVALID_GOAL,
+    ArmController,
+    InvalidTrajectory,
+    Outcome,
+    command_from_points,
+    validate,
+)
+from actaim2.sim.objects.catalog import category_instances, list_categories
+from actaim2.sim.sensor_noise import SensorNoise
+from actaim2_perception.pointcloud2 import to_msg as cloud_to_msg
+from actaim2_perception.transforms import StaticTransformPublisher, matrix_to_transform
+
+from actaim2_sim.parameters import declare_parameters
+
+MAX_CATCH_UP = 0.25  # sim seconds per tick at most when behind real time (no spiral of death)
+FAST_TICK_BUDGET = 0.02  # wall seconds of stepping per tick with real_time_factor 0
+
+
+def sim_time_msg(t: float) -> Time:
+    sec = int(np.floor(t))
+    return Time(sec=sec, nanosec=int(round((t - sec) * 1e9)) % 1_000_000_000)
+
+
+def stamp_seconds(stamp: Time) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+@dataclass
+class PendingGoal:
+    """A goal the loop executes. ``finish`` hands the outcome to the executor thread waiting in
+    :meth:`conclude`, which moves the action goal to its final state and returns the result."""
+
+    handle: ServerGoalHandle | None  # None for trajectories from the JTC topic
+    done: threading.Event = field(default_factory=threading.Event)
+    concluded: threading.Event = field(default_factory=threading.Event)
+    result: object = None
+    state: str = "abort"  # succeed | abort | canceled: the ServerGoalHandle method to call
+
+    def finish(self, state: str, result: object) -> None:
+        self.state, self.result = state, result
+        self.done.set()
+
+    def conclude(self) -> object:
+        self.done.wait()
+        getattr(self.handle, self.state)()
+        self.concluded.set()
+        return self.result
+
+
+class SimNode(Node):
+    def __init__(self) -> None:
+        super().__init__("sim_node")
+        self.p = declare_parameters(self)
+        p = self.p
+        self.env = SimEnv(
+            p.robot,
+            timestep=1.0 / p.physics_rate,
+            cameras=p.rig,
+            render_path=p.render_path,
+            camera_size=(p.camera_width, p.camera_height),
+            noise=SensorNoise.preset(p.sensor_noise),
+        )
+        self.get_logger().info(
+            f"render path: {self.env.render_path} ({p.rig} rig, {len(self.env.rig.cameras)} camera(s)); "
+            f"physics {p.physics_rate:.0f} Hz, real-time factor {p.real_time_factor or 'as fast as possible'}"
+        )
+        self.arm_joints = tuple(self.env.spec.arm_joints)
+        self.n_arm = len(self.arm_joints)
+        self.env.reset(p.category, p.instance, p.seed, p.dof_fraction)
+        self.arm = ArmController(self.arm_joints, self.env.robot.arm_positions(), p.goal_tolerance, p.goal_time_tolerance)
+        self._arm_goal: PendingGoal | None = None
+        self._gripper_goal: tuple[PendingGoal, GripperGoal] | None = None
+        self._lock = threading.Lock()  # guards the two goal slots between the loop and executors
+
+        self.loop_group = MutuallyExclusiveCallbackGroup()
+        action_group = ReentrantCallbackGroup()
+        self.joint_state_pub = self.create_publisher(JointState, "/joint_states", 10)
+        self.object_state_pub = self.create_publisher(JointState, "/object_state", 10)
+        self.clock_pub = self.create_publisher(Clock, "/clock", 10)
+        self.cloud_pubs = {
+            name: self.create_publisher(PointCloud2, cam.topic, qos_profile_sensor_data)
+            for name, cam in self.env.rig.cameras.items()
+        }
+        self.tf_static = StaticTransformPublisher(self)
+        self._publish_tf_static()
+
+        arm_ns = f"/{p.arm_controller}"
+        self.trajectory_server = ActionServer(
+            self, FollowJointTrajectory, f"{arm_ns}/follow_joint_trajectory", self._execute_trajectory,
+            cancel_callback=lambda _: CancelResponse.ACCEPT, callback_group=action_group,
+        )
+        self.gripper_server = ActionServer(
+            self, GripperCommand, f"/{p.gripper_controller}/gripper_cmd", self._execute_gripper,
+            cancel_callback=lambda _: CancelResponse.ACCEPT, callback_group=action_group,
+        )
+        self.create_subscription(JointTrajectory, f"{arm_ns}/joint_trajectory", self._on_trajectory_topic, 10,
+                                 callback_group=self.loop_group)
+        self.create_service(ResetScene, "/reset_scene", self._on_reset_scene, callback_group=self.loop_group)
+
+        self._next_state_time = 0.0
+        self._next_feedback_time = 0.0
+        self._next_camera_time = 0.0
+        self._wall_last = time.monotonic()
+        self.create_timer(p.tick_period, self._tick, callback_group=self.loop_group)
+
+    # -- static frames ------------------------------------------------------------------------
+    def _publish_tf_static(self) -> None:
+        edges = [matrix_to_transform(np.eye(4), "world", self.env.spec.root_link)]
+        seen = set()
+        for cam in self.env.rig.cameras.values():
+            for parent, child, T in cam.tf_chain:
+                if child not in seen:
+                    seen.add(child)
+                    edges.append(matrix_to_transform(T, parent, child))
+        self.tf_static.send(edges)
+
+    # -- the loop -----------------------------------------------------------------------------
+    def _tick(self) -> None:
+        wall_now = time.monotonic()
+        env = self.env
+        if self.p.real_time_factor > 0:
+            target = env.time + min((wall_now - self._wall_last) * self.p.real_time_factor, MAX_CATCH_UP)
+            while env.time + 0.5 * env.timestep < target:
+                self._physics_step()
+        else:
+            deadline = wall_now + FAST_TICK_BUDGET
+            while time.monotonic() < deadline:
+                for _ in range(10):
+                    self._physics_step()
+        self._wall_last = wall_now
+        self.clock_pub.publish(Clock(clock=sim_time_msg(env.time)))
+        if self.p.camera_rate > 0 and env.time >= self._next_camera_time:
+            self._publish_clouds()
+            self._next_camera_time = max(self._next_camera_time + 1.0 / self.p.camera_rate, env.time)
+
+    def _physics_step(self) -> None:
+        env = self.env
+        q, qd = self.arm.command(env.time + env.timestep)
+        env.set_arm_targets(q, qd)
+        env.step()
+        if env.time >= self._next_state_time:
+            self._next_state_time = max(self._next_state_time + 1.0 / self.p.joint_state_rate, env.time)
+            self._publish_states()
+            self._monitor_goals()
+
+    def _publish_states(self) -> None:
+        stamp = sim_time_msg(self.env.time)
+        names, q, qd = self.env.joint_state()
+        msg = JointState(name=list(names), position=q.tolist(), velocity=qd.tolist())
+        msg.header.stamp = stamp
+        self.joint_state_pub.publish(msg)
+        obj = self.env.object
+        msg = JointState(name=obj.dof_names, position=obj.qpos().tolist(),
+                         velocity=np.asarray(obj.articulation.get_qvel(), float).tolist())
+        msg.header.stamp = stamp
+        self.object_state_pub.publish(msg)
+
+    def _publish_clouds(self) -> None:
+        obs = self.env.observe(with_robot=not self.get_parameter("hide_robot").value)
+        stamp = sim_time_msg(obs.sim_time)
+        for name, frame in obs.frames.items():
+            cam = obs.cameras[name]
+            self.cloud_pubs[name].publish(cloud_to_msg(frame.xyz, frame.rgb, cam.frame_id, stamp))
+
+    # -- arm: FollowJointTrajectory and the JTC topic --------------------------------------------
+    def _monitor_goals(self) -> None:
+        now = self.env.time
+        names, q, qd = self.env.joint_state()
+        q_arm, q_grip, qd_grip = q[: self.n_arm], float(q[self.n_arm]), float(qd[self.n_arm])
+        with self._lock:
+            goal = self._arm_goal
+            if goal is not None and goal.handle is not None and goal.handle.is_cancel_requested:
+                self.arm.hold(q_arm)
+                self._arm_goal = None
+                goal.finish("canceled", FollowJointTrajectory.Result(error_code=0, error_string="canceled"))
+            elif self.arm.active is not None or goal is not None:
+                if goal is not None and goal.handle is not None and now >= self._next_feedback_time:
+                    self._next_feedback_time = now + 1.0 / self.p.action_monitor_rate
+                    goal.handle.publish_feedback(self._trajectory_feedback(now, q_arm, qd[: self.n_arm]))
+                outcome = self.arm.check(now, q_arm)
+                if outcome is not None:
+                    if outcome.error_code != 0:
+                        self.get_logger().warning(f"trajectory aborted: {outcome.message}")
+                    if goal is not None:
+                        self._arm_goal = None
+                        goal.finish("succeed" if outcome.error_code == 0 else "abort", _trajectory_result(outcome))
+            if self._gripper_goal is not None:
+                pending, tracker = self._gripper_goal
+                if pending.handle.is_cancel_requested:
+                    self.env.set_gripper(q_grip)
+                    self._gripper_goal = None
+                    pending.finish("canceled", self._gripper_result(GripperOutcome(False, False, False)))
+                else:
+                    outcome = tracker.update(now, q_grip, qd_grip)
+                    if outcome is not None:
+                        self._gripper_goal = None
+                        pending.finish("succeed" if outcome.succeeded else "abort", self._gripper_result(outcome))
+
+    def _trajectory_feedback(self, now: float, q: np.ndarray, qd: np.ndarray) -> FollowJointTrajectory.Feedback:
+        desired_q, desired_qd = self.arm.command(now)
+        feedback = FollowJointTrajectory.Feedback(joint_names=list(self.arm_joints))
+        feedback.header.stamp = sim_time_msg(now)
+        feedback.desired = JointTrajectoryPoint(positions=desired_q.tolist(), velocities=desired_qd.tolist())
+        feedback.actual = JointTrajectoryPoint(positions=q.tolist(), velocities=qd.tolist())
+        feedback.error = JointTrajectoryPoint(positions=(desired_q - q).tolist(), velocities=(desired_qd - qd).tolist())
+        return feedback
+
+    def _start_trajectory(self, trajectory: JointTrajectory, goal: PendingGoal, tolerances: dict | None = None) -> None:
+        """Validate and start (JTC: a valid trajectory replaces the running one). Raises
+        InvalidTrajectory, leaving whatever runs untouched."""
+        stamp = stamp_seconds(trajectory.header.stamp)
+        command = command_from_points(
+            list(trajectory.joint_names),
+            [(p.time_from_start.sec + p.time_from_start.nanosec * 1e-9, list(p.positions), list(p.velocities),
+              list(p.accelerations)) for p in trajectory.points],
+            start_time=stamp if stamp > 0 else None,
+        )
+        with self._lock:
+            now = self.env.time
+            validate(command, self.arm_joints, now)
+            previous = self._arm_goal
+            _, q, qd = self.env.joint_state()
+            self.arm.start(command, now, q[: self.n_arm], qd[: self.n_arm], **(tolerances or {}))
+            self._arm_goal = goal if self.arm.active is not None else None
+            if self.arm.active is None:  # empty trajectory: hold position, done
+                goal.finish("succeed", _trajectory_result(Outcome(0, "empty trajectory: holding position")))
+        if previous is not None:
+            previous.finish("abort", FollowJointTrajectory.Result(
+                error_code=INVALID_GOAL, error_string="preempted: a new trajectory replaced this goal"))
+
+    def _execute_trajectory(self, handle: ServerGoalHandle) -> FollowJointTrajectory.Result:
+        goal = PendingGoal(handle)
+        request = handle.request
+        try:
+            tolerances = {
+                "path_tolerance": self.arm.tolerances_from([t.name for t in request.path_tolerance],
+                                                           [t.position for t in request.path_tolerance],
+                                                           np.zeros(self.n_arm)),
+                "goal_tolerance": self.arm.tolerances_from([t.name for t in request.goal_tolerance],
+                                                           [t.position for t in request.goal_tolerance],
+                                                           self.arm.default_goal_tolerance),
+            }
+            goal_time = stamp_seconds(request.goal_time_tolerance)
+            if goal_time > 0:
+                tolerances["goal_time_tolerance"] = goal_time
+            self._start_trajectory(request.trajectory, goal, tolerances)
+        except InvalidTrajectory as exc:
+            self.get_logger().error(f"rejected trajectory goal: {exc}")
+            handle.abort()
+            return FollowJointTrajectory.Result(error_code=exc.error_code, error_string=str(exc))
+        return goal.conclude()
+
+    def _on_trajectory_topic(self, msg: JointTrajectory) -> None:
+        try:
+            self._start_trajectory(msg, PendingGoal(None))
+        except InvalidTrajectory as exc:
+            self.get_logger().error(f"ignored trajectory on the topic: {exc}")
+
+    # -- gripper: GripperCommand ------------------------------------------------------------------
+    def _gripper_result(self, outcome: GripperOutcome) -> GripperCommand.Result:
+        joint = self.env.robot.gripper_joints[0]
+        q, qd = float(self.env.robot.gripper_position()), float(self.env.joint_state()[2][self.n_arm])
+        effort = float(np.clip(joint.stiffness * (self.env.robot.gripper_target() - q) - joint.damping * qd,
+                               -joint.force_limit, joint.force_limit))
+        return GripperCommand.Result(position=q, effort=effort, stalled=outcome.stalled, reached_goal=outcome.reached_goal)
+
+    def _execute_gripper(self, handle: ServerGoalHandle) -> GripperCommand.Result:
+        command = handle.request.command
+        pending = PendingGoal(handle)
+        if not np.isfinite(command.position):
+            self.get_logger().error(f"rejected gripper goal: position {command.position} is not finite")
+            handle.abort()
+            return self._gripper_result(GripperOutcome(False, False, False))
+        p = self.p
+        with self._lock:
+            previous = self._gripper_goal
+            tracker = GripperGoal(command.position, self.env.time, p.gripper_goal_tolerance, p.gripper_stall_velocity,
+                                  p.gripper_stall_timeout, p.gripper_allow_stalling)
+            self.env.set_gripper(command.position)
+            self._gripper_goal = (pending, tracker)
+        if previous is not None:
+            previous[0].finish("abort", self._gripper_result(GripperOutcome(False, False, False)))
+        return pending.conclude()
+
+    def _abort_goals(self, reason: str) -> list[PendingGoal]:
+        """Abort the running arm and gripper goals (scene reset, shutdown); returns them."""
+        with self._lock:
+            arm, gripper = self._arm_goal, self._gripper_goal
+            self._arm_goal, self._gripper_goal = None, None
+        aborted = []
+        if arm is not None:
+            arm.finish("abort", FollowJointTrajectory.Result(error_code=INVALID_GOAL, error_string=f"aborted: {reason}"))
+            aborted.append(arm)
+        if gripper is not None:
+            gripper[0].finish("abort", self._gripper_result(GripperOutcome(False, False, False)))
+            aborted.append(gripper[0])
+        return aborted
+
+    def destroy_node(self) -> None:
+        # Executor threads wait in PendingGoal.conclude(): let them end their goals first.
+        for goal in self._abort_goals("sim_node shutting down"):
+            if goal.handle is not None:
+                goal.concluded.wait(timeout=1.0)
+        super().destroy_node()
+
+    # -- scene --------------------------------------------------------------------------------
+    def _on_reset_scene(self, request: ResetScene.Request, response: ResetScene.Response) -> ResetScene.Response:
+        response.success = False
+        if request.category not in list_categories():
+            response.message = f"unknown category '{request.category}'; valid categories: {', '.join(list_categories())}"
+            return response
+        instances = category_instances(request.category)
+        if request.instance not in instances:
+            response.message = (f"unknown instance {request.instance} of '{request.category}'; "
+                                f"valid instances: {instances[0]}..{instances[-1]}")
+            return response
+        if not (np.isfinite(request.dof_fraction) and 0.0 <= request.dof_fraction <= 1.0):
+            response.message = f"dof_fraction must be within [0, 1], got {request.dof_fraction}"
+            return response
+        with self._lock:
+            info = self.env.reset(request.category, request.instance, request.seed, request.dof_fraction)
+            self.arm.hold(self.env.robot.arm_positions())
+        self._abort_goals("scene reset")
+        self._next_camera_time = self.env.time  # views of the new scene as soon as possible
+        self.get_logger().info(f"scene reset: {info.object_id} (seed {info.seed}, dof_fraction {request.dof_fraction:.2f})")
+        response.success = True
+        response.message = f"loaded {info.object_id}"
+        response.object_id = info.object_id
+        response.dof_names = list(info.dof_names)
+        response.dof_lower = info.dof_lower.tolist()
+        response.dof_upper = info.dof_upper.tolist()
+        response.dof_initial = info.dof_initial.tolist()
+        return response
+
+
+def _trajectory_result(outcome: Outcome) -> FollowJointTrajectory.Result:
+    return FollowJointTrajectory.Result(error_code=outcome.error_code, error_string=outcome.message)
+
+
+def main(args: list[str] | None = None) -> None:
+    apply_ros_defaults()
+    rclpy.init(args=args)
+    node = SimNode()
+    # Action goals wait in executor threads for the loop to finish them: allow several at once.
+    executor = MultiThreadedExecutor(num_threads=8)
+    try:
+        rclpy.spin(node, executor=executor)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,1 @@
+"""Benchmarks behind `actaim2 bench <area>`: each module prints a markdown table."""

@@ -1,0 +1,1 @@
+"""Arm control: Pinocchio model, IK, collision checks, Ruckig trajectories, keypose execution."""

@@ -1,0 +1,153 @@
+"""From a keypose and the arm's current state to a gripper command and a joint trajectory.
+
+The four phases of the primitive (DESIGN.md) plan differently:
+  * INIT: one Ruckig joint-space segment to an IK solution of p0.
+  * REACH: the arm arrives along the approach axis (tcp z) on a straight line ending at p1.
+    When the tcp already lies on that axis behind p1 (the usual case: p0 is put there) and the
+    arm can follow it from where it is, the whole motion is that line; otherwise IK solves p1
+    first (with restarts), the line is walked back from there to the pre-grasp pose
+    ``approach_distance`` behind p1, a Ruckig segment reaches that via point and the line
+    follows, chained with a chosen speed along the line so the arm does not stop there.
+  * GRASP: no arm motion; the gripper closes.
+  * MANIPULATE: a straight line from the current tcp pose to p2 (orientation kept).
+Straight lines start from rest (the arm has settled after the previous keypose).
+Every sampled configuration is checked for self- and environment collisions; the fused
+cloud is used only while the scene is static (INIT, REACH): during MANIPULATE the object
+moves with the hand. Pure library code: executing the plan is an executor's job.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from actaim2.control.collision import CollisionChecker, points_away_from
+from actaim2.control.ik import IKSolver
+from actaim2.control.line import LineError, LineSegment, solve_line
+from actaim2.control.model import RobotModel
+from actaim2.control.trajectory import JointPlanner, JointTrajectory, Limits, Segment, State, TrajectoryError, sample
+
+INIT, REACH, GRASP, MANIPULATE = 0, 1, 2, 3  # Keypose.phase values
+PHASE_NAMES = ("INIT", "REACH", "GRASP", "MANIPULATE")
+
+
+@dataclass(frozen=True)
+class PlannerOptions:
+    approach_distance: float = 0.10  # m: length of REACH's straight last segment when the arm starts off-axis
+    on_axis_tolerance: float = 0.003  # m (and 2 deg): the tcp counts as on the approach axis
+    line_step: float = 0.005  # m between IK samples along a straight line
+    max_joint_step: float = 0.2  # rad: a larger jump between line samples refuses the line
+    via_speed_fraction: float = 0.5  # speed at the pre-grasp via point, fraction of the line's top speed
+    sample_period: float = 0.02  # s between trajectory points sent to the controller
+    cloud_clearance: float = 0.12  # m: cloud points this close to p1 are the grasped part, not obstacles
+
+
+@dataclass
+class Motion:
+    """What executing one keypose takes: a gripper command, then an arm trajectory (either may be None)."""
+
+    phase: int
+    T_goal: np.ndarray  # requested tcp pose (world)
+    gripper_closed: bool | None
+    trajectory: JointTrajectory | None
+    line_deviation: float | None = None  # m, largest tcp distance from the straight part (when there is one)
+
+
+class PlanningError(RuntimeError):
+    """A keypose that cannot be executed; ``reason`` is machine-readable (an IKFailure value,
+    "path_collision", "straight_line" or "trajectory"), the message says the details."""
+
+    def __init__(self, reason: str, message: str):
+        super().__init__(message)
+        self.reason = reason
+
+
+class KeyposePlanner:
+    """Plans keyposes for one robot in one workspace (not thread-safe: shared Pinocchio data)."""
+
+    def __init__(self, robot: RobotModel, checker: CollisionChecker, ik: IKSolver, options: PlannerOptions = PlannerOptions()):
+        self.robot = robot
+        self.checker = checker
+        self.ik = ik
+        self.options = options
+        self._joint_planner = JointPlanner(robot.n)
+        self._cloud: np.ndarray | None = None
+
+    def set_cloud(self, points: np.ndarray | None) -> None:
+        """Latest obstacle cloud in `world` (None: none); cropped around each grasp point when used."""
+        self._cloud = None if points is None else np.asarray(points, dtype=float)
+
+    def plan(self, phase: int, T_goal: np.ndarray, gripper_closed: bool, start: State, velocity_scaling: float = 1.0,
+             rng: np.random.Generator | None = None) -> Motion:
+        """The motion executing keypose (phase, T_goal, gripper_closed) from the arm state ``start``."""
+        if phase not in (INIT, REACH, GRASP, MANIPULATE):
+            raise PlanningError("invalid", f"unknown phase {phase}: expected 0..3 (INIT, REACH, GRASP, MANIPULATE)")
+        limits = Limits.of(self.robot, velocity_scaling)
+        T_goal = np.asarray(T_goal, dtype=float)
+        if phase == GRASP:
+            return Motion(phase, T_goal, gripper_closed, None)
+        use_cloud = phase != MANIPULATE and self._cloud is not None
+        self.checker.set_cloud(points_away_from(self._cloud, T_goal[:3, 3], self.options.cloud_clearance) if use_cloud else None)
+        try:
+            if phase == INIT:
+                segments, deviation = [self._joint_segment(start, self._ik(T_goal, start.position, rng), limits)], None
+            elif phase == REACH:
+                segments, deviation = self._reach(T_goal, start, limits, rng)
+            else:
+                segments, deviation = self._line(self.robot.fk(start.position), T_goal, start.position, False, limits, start)
+        except LineError as exc:
+            raise PlanningError("straight_line", f"{PHASE_NAMES[phase]}: straight line refused: {exc}") from exc
+        except TrajectoryError as exc:
+            raise PlanningError("trajectory", f"{PHASE_NAMES[phase]}: {exc}") from exc
+        trajectory = sample(segments, self.robot.joint_names, self.options.sample_period) if segments else None
+        if trajectory is not None and len(trajectory) == 0:
+            trajectory = None  # already at the goal
+        if trajectory is not None:
+            self._check_path(trajectory, phase, use_cloud)
+        return Motion(phase, T_goal, gripper_closed, trajectory, deviation)
+
+    def _ik(self, T: np.ndarray, seed: np.ndarray, rng: np.random.Generator | None) -> np.ndarray:
+        result = self.ik.solve(T, seed, rng=rng)
+        if not result.success:
+            raise PlanningError(result.failure.value, f"IK for {np.round(T[:3, 3], 3).tolist()}: {result.message}")
+        return result.angles
+
+    def _joint_segment(self, start: State, goal: np.ndarray, limits: Limits, goal_state: State | None = None) -> Segment:
+        return self._joint_planner.plan(start, goal_state or State.at_rest(goal), limits)
+
+    def _reach(self, T_goal: np.ndarray, start: State, limits: Limits, rng) -> tuple[list[Segment], float]:
+        opts = self.options
+        T_now = self.robot.fk(start.position)
+        approach = T_goal[:3, 2]
+        behind = T_goal[:3, 3] - T_now[:3, 3]
+        lateral = np.linalg.norm(behind - (behind @ approach) * approach)
+        turn = Rotation.from_matrix(T_now[:3, :3].T @ T_goal[:3, :3]).magnitude()
+        if behind @ approach >= 0.0 and lateral <= opts.on_axis_tolerance and turn <= np.radians(2.0):
+            try:
+                return self._line(T_now, T_goal, start.position, False, limits, start)
+            except LineError:
+                pass  # the arm's current branch runs into a limit on the way: come in on another one
+        goal = self._ik(T_goal, start.position, rng)
+        T_pre = T_goal.copy()
+        T_pre[:3, 3] -= opts.approach_distance * approach
+        path = solve_line(self.ik, T_pre, T_goal, goal, anchor_at_end=True, step=opts.line_step,
+                          max_joint_step=opts.max_joint_step, use_cloud=True)
+        line = LineSegment(path, limits, entry_speed_fraction=opts.via_speed_fraction)
+        via = line.entry_state()
+        return [self._joint_segment(start, via.position, limits, via), line], path.deviation(self.robot)[0]
+
+    def _line(self, T_start, T_goal, anchor, anchor_at_end: bool, limits: Limits, start: State) -> tuple[list[Segment], float]:
+        opts = self.options
+        if np.linalg.norm(T_goal[:3, 3] - T_start[:3, 3]) < 1e-4 and Rotation.from_matrix(T_start[:3, :3].T @ T_goal[:3, :3]).magnitude() < 1e-3:
+            return [], 0.0  # already there
+        path = solve_line(self.ik, T_start, T_goal, anchor, anchor_at_end, step=opts.line_step,
+                          max_joint_step=opts.max_joint_step, use_cloud=self.checker.has_cloud)
+        return [LineSegment(path, limits)], path.deviation(self.robot)[0]
+
+    def _check_path(self, trajectory: JointTrajectory, phase: int, use_cloud: bool) -> None:
+        for t, q in zip(trajectory.times, trajectory.positions):
+            hit = self.checker.check(q, use_cloud=use_cloud)
+            if hit is not None:
+                reason = "self_collision" if hit.kind == "self" else "environment_collision"
+                raise PlanningError(reason, f"{PHASE_NAMES[phase]}: {hit} at t = {t:.2f} s of the trajectory")

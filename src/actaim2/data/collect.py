@@ -1,0 +1,315 @@
+"""The collection loop (paper Algorithm 1): explore, learn E, label, adapt, label again.
+
+Stages, each resumable (a stored or skipped trajectory id is never run again):
+  1. explore   random and heuristic-grasp trajectories on every object
+  2. encoder   the default encoder E is trained on the training split's observations (unless a
+               file is given, e.g. a VGG-19 encoder)
+  3. label     z = E(O_init) - E(O_final) for every trajectory, threshold calibrated on the
+               training split, visual labels written (labelling.py)
+  4. adapt     per object, GMMs fitted on z and on the action sequences (gmm_sampler.py) and
+               new trajectories drawn equally from every cluster; ``rounds`` > 1 refits between
+               rounds with the new trajectories labelled, as Algorithm 1 iterates
+  5. label     again, so every trajectory has a visual label
+
+One trajectory: reset the object half-open (placement jitter from the trajectory's seed),
+observe O_init (robot hidden) and O_0, build the object cloud from O_init, sample an action
+sequence, check the arm reaches its three poses (IK), execute the four keyposes through the
+control package's planner observing O_1..O_3 in between, observe O_final (robot hidden), read
+the DoFs (privileged, for validation only). A keypose the planner refuses restarts the
+trajectory with a new sample, up to ``max_attempts`` times.
+
+Workers are processes, each with its own simulator; the parent only writes. Every trajectory's
+randomness comes from a seed derived from (seed, object, sampler, index), so a dataset is
+reproducible from its seed whatever the worker count or interruptions.
+"""
+from __future__ import annotations
+
+import json
+import multiprocessing as mp
+import os
+import time
+import zlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from actaim2.data.actions import ActionSequence, Sampler
+from actaim2.data.gmm_sampler import GMMAdaptiveSampler, GMMConfig
+from actaim2.data.grasp_sampler import HeuristicGraspSampler
+from actaim2.data.labelling import EMBEDDINGS_FILE, ENCODER_FILE, fit_default_encoder, label_dataset
+from actaim2.data.object_cloud import CloudConfig, object_cloud
+from actaim2.data.random_sampler import RandomSampler, SamplingConfig
+from actaim2.data.splits import TRAIN, check_no_leak, split_of
+from actaim2.data.stats import RUNS_FILE
+from actaim2.data.storage import DatasetReader, DatasetWriter, EncodedTrajectory, encode_trajectory, trajectory_id
+from actaim2.data.trajectory import CameraImage, ObjectState, Observation, Trajectory
+
+EXPLORE_SAMPLERS = ("random", "grasp")
+SAMPLER_CODES = {"random": 1, "grasp": 2, "gmm": 3}
+SKIPPED_FILE = "skipped.jsonl"  # trajectories given up on (no feasible sample): not retried on resume
+
+
+@dataclass(frozen=True)
+class CollectConfig:
+    out: Path
+    objects: tuple[tuple[str, int], ...]
+    per_object: dict[str, int]  # sampler -> trajectories per object
+    workers: int = 2  # processes; 0 runs in this process (debugging, tests)
+    seed: int = 0
+    robot: str = "panda"
+    render_path: str = "auto"
+    dof_fraction: float = 0.5  # objects start half-open (paper)
+    velocity_scaling: float = 0.5
+    max_attempts: int = 4  # sample + execute attempts per trajectory
+    max_samples: int = 12  # samples per attempt until one passes the IK check
+    rounds: int = 1  # GMM refits (Algorithm 1's outer loop)
+    encoder: Path | None = None  # a saved ImageEncoder; None trains the default into out/encoder.pt
+    encoder_steps: int = 1500
+    encoder_trajectories: int = 150
+    gmm: GMMConfig = field(default_factory=GMMConfig)
+    show_progress: bool = True
+
+
+@dataclass(frozen=True)
+class Task:
+    tid: str
+    category: str
+    instance: int
+    split: str
+    sampler: str
+    index: int  # this sampler's trajectory number on the object
+    seed: int
+    gmm: GMMAdaptiveSampler | None = None
+
+
+def derive_seed(seed: int, object_id: str, *numbers: int) -> int:
+    """A 32-bit seed from the collection seed, an object and more non-negative numbers."""
+    return int(np.random.SeedSequence([seed, zlib.crc32(object_id.encode()), *numbers]).generate_state(1)[0])
+
+
+def from_sim(observation) -> Observation:
+    """The simulator's :class:`actaim2.sim.observe.Observation` as stored camera pictures."""
+    return {name: CameraImage(frame.rgb, frame.depth, observation.cameras[name].K, observation.cameras[name].T_world_optical)
+            for name, frame in observation.frames.items()}
+
+
+class TrajectoryCollector:
+    """Runs tasks in one process: a simulator with the ring of cameras, the keypose planner, the samplers."""
+
+    def __init__(self, config: CollectConfig):
+        from actaim2.control.collision import CollisionChecker
+        from actaim2.control.ik import IKSolver
+        from actaim2.control.model import RobotModel
+        from actaim2.control.planner import KeyposePlanner
+        from actaim2.sim.env import WORKSPACE_CENTER, SimEnv
+
+        self.config = config
+        self.env = SimEnv(config.robot, cameras="ring5", render_path=config.render_path)
+        robot = RobotModel(self.env.spec)
+        checker = CollisionChecker(robot)
+        self.planner = KeyposePlanner(robot, checker, IKSolver(robot, checker))
+        self.cloud_config = CloudConfig(center=tuple(float(v) for v in WORKSPACE_CENTER))
+        sampling = SamplingConfig()
+        self.samplers: dict[str, Sampler] = {"random": RandomSampler(sampling), "grasp": HeuristicGraspSampler(self.cloud_config, sampling)}
+
+    def run(self, task: Task) -> EncodedTrajectory | dict:
+        """The encoded trajectory, or a {id, reason} record when no attempt could be executed."""
+        start = time.perf_counter()
+        rng = np.random.default_rng(task.seed)
+        sampler = task.gmm if task.sampler == "gmm" else self.samplers[task.sampler]
+        reasons = []
+        for attempt in range(self.config.max_attempts):
+            result = self._attempt(task, sampler, rng)
+            if isinstance(result, Trajectory):
+                encoded = encode_trajectory(result)
+                encoded.entry.update(action=[float(v) for v in ActionSequence.from_keyposes(result.keyposes).vector()],
+                                     attempts=attempt + 1, worker_seconds=round(time.perf_counter() - start, 3))
+                return encoded
+            reasons.append(result)
+        return {"id": task.tid, "sampler": task.sampler, "category": task.category, "instance": task.instance, "reasons": reasons}
+
+    def _attempt(self, task: Task, sampler: Sampler, rng: np.random.Generator) -> Trajectory | str:
+        from actaim2.control.executor import KeyposeRunner
+        from actaim2.control.sim_executor import SimEnvExecutor
+
+        env = self.env
+        info = env.reset(task.category, task.instance, seed=int(rng.integers(2**31)), dof_fraction=self.config.dof_fraction)
+        observations = {"init": from_sim(env.observe(with_robot=False))}
+        joints = {"init": self._joints()}
+        cloud = object_cloud(observations["init"], self.cloud_config, rng)
+        action = None
+        for _ in range(self.config.max_samples):
+            candidate = sampler.sample(cloud, rng, task.index)
+            if candidate is None:
+                return "sampler found no action"
+            if self._reachable(candidate, rng):
+                action = candidate
+                break
+        if action is None:
+            return "no sampled action passed the IK check"
+        self.planner.set_cloud(cloud.points)
+        runner = KeyposeRunner(self.planner, SimEnvExecutor(env), rng)
+        keyposes = action.keyposes()
+        outcomes = []
+        for i, keypose in enumerate(keyposes):
+            observations[f"o{i}"] = from_sim(env.observe(with_robot=True))
+            joints[f"o{i}"] = self._joints()
+            outcome = runner.run(keypose, self.config.velocity_scaling)
+            if not outcome.success:
+                return f"keypose {i}: {outcome.reason}"
+            outcomes.append({"position_error": round(outcome.position_error, 4), "orientation_error": round(outcome.orientation_error, 4)})
+        observations["final"] = from_sim(env.observe(with_robot=False))
+        joints["final"] = self._joints()
+        lower, upper = env.object_limits()
+        return Trajectory(
+            id=task.tid, object_id=info.object_id, category=task.category, instance=task.instance, split=task.split,
+            sampler=task.sampler, seed=task.seed, keyposes=keyposes, observations=observations, robot_joints=joints,
+            object_state=ObjectState(list(info.dof_names), lower, upper, info.dof_initial, env.object_dof()),
+            info={"outcomes": outcomes, "reset_seed": info.seed, "sampler_cluster": task.gmm.cluster_of(task.index) if task.gmm else None},
+        )
+
+    def _reachable(self, action: ActionSequence, rng: np.random.Generator) -> bool:
+        """IK (self-collision and floor checked) exists for p0, p1 and p2, each seeded from the last."""
+        seed = self.env.spec.home
+        for keypose in action.keyposes()[:2] + action.keyposes()[3:]:
+            T = np.eye(4)
+            T[:3, :3], T[:3, 3] = action.R0, keypose.position
+            result = self.planner.ik.solve(T, seed, rng=rng, use_cloud=False)
+            if not result.success:
+                return False
+            seed = result.angles
+        return True
+
+    def _joints(self) -> dict[str, float]:
+        names, positions, _ = self.env.joint_state()
+        return {n: float(p) for n, p in zip(names, positions)}
+
+
+_COLLECTOR: TrajectoryCollector | None = None
+
+
+def _init_worker(config: CollectConfig) -> None:
+    global _COLLECTOR
+    import torch
+
+    torch.set_num_threads(1)  # one core per worker process: intra-op threads would only contend
+    _COLLECTOR = TrajectoryCollector(config)
+
+
+def _run_task(task: Task) -> EncodedTrajectory | dict:
+    return _COLLECTOR.run(task)
+
+
+def _skipped_ids(out: Path) -> set[str]:
+    path = out / SKIPPED_FILE
+    return {json.loads(line)["id"] for line in path.read_text().splitlines() if line.strip()} if path.exists() else set()
+
+
+def run_tasks(config: CollectConfig, writer: DatasetWriter, tasks: list[Task], stage: str) -> dict:
+    """Execute tasks not yet stored or skipped; append results as they come (in task order)."""
+    done = writer.ids | _skipped_ids(config.out)
+    todo = [t for t in tasks if t.tid not in done]
+    summary = {"stage": stage, "workers": config.workers, "trajectories": 0, "skipped": 0, "seconds": 0.0,
+               "already_done": len(tasks) - len(todo)}
+    if not todo:
+        return summary
+    start = time.perf_counter()
+    bar = tqdm(total=len(todo), desc=stage, unit="traj", disable=not config.show_progress)
+    successes = 0
+    with open(config.out / SKIPPED_FILE, "a") as skipped_log:
+        if config.workers == 0:
+            _init_worker(config)
+            results = map(_run_task, todo)
+            pool = None
+        else:
+            os.environ.setdefault("OMP_NUM_THREADS", "1")  # inherited by the workers (Open3D)
+            pool = mp.get_context("spawn").Pool(config.workers, initializer=_init_worker, initargs=(config,))
+            results = pool.imap(_run_task, todo)
+        try:
+            for result in results:
+                if isinstance(result, EncodedTrajectory):
+                    writer.append(result)
+                    summary["trajectories"] += 1
+                    successes += bool(result.entry["gt_success"])
+                else:
+                    skipped_log.write(json.dumps(result) + "\n")
+                    skipped_log.flush()
+                    summary["skipped"] += 1
+                bar.update(1)
+                bar.set_postfix(stored=summary["trajectories"], skipped=summary["skipped"],
+                                gt_success=f"{successes / max(summary['trajectories'], 1):.0%}")
+        finally:
+            if pool is not None:
+                pool.terminate()
+            bar.close()
+    summary["seconds"] = round(time.perf_counter() - start, 2)
+    with open(config.out / RUNS_FILE, "a") as f:
+        f.write(json.dumps(summary) + "\n")
+    return summary
+
+
+def _tasks(config: CollectConfig, sampler: str, indices: range, gmm: dict | None = None) -> list[Task]:
+    from actaim2.sim.objects.catalog import object_id
+
+    tasks = []
+    for category, instance in config.objects:
+        oid = object_id(category, instance)
+        if gmm is not None and oid not in gmm:
+            continue
+        for k in indices:
+            tasks.append(Task(trajectory_id(oid, sampler, k), category, instance, split_of(category, instance), sampler, k,
+                              derive_seed(config.seed, oid, SAMPLER_CODES[sampler], k), gmm[oid] if gmm is not None else None))
+    return tasks
+
+
+def _label(config: CollectConfig) -> dict:
+    """Train the default encoder once if none was given, then (re)label everything."""
+    encoder = config.encoder
+    if encoder is None:
+        encoder = config.out / ENCODER_FILE
+        if not encoder.exists():
+            reader = DatasetReader(config.out)
+            model, _ = fit_default_encoder(reader, config.encoder_trajectories, config.encoder_steps, config.seed, config.show_progress)
+            model.save(encoder)
+    return label_dataset(config.out, encoder, TRAIN, config.show_progress)
+
+
+def fit_gmm_samplers(config: CollectConfig) -> dict[str, GMMAdaptiveSampler]:
+    """Per object, the GMM-adaptive sampler fitted on all its labelled trajectories."""
+    reader = DatasetReader(config.out)
+    with np.load(config.out / EMBEDDINGS_FILE) as f:
+        z = dict(zip(f["ids"].tolist(), f["z"]))
+    by_object: dict[str, list[dict]] = {}
+    for e in reader.entries:
+        by_object.setdefault(e["object_id"], []).append(e)
+    samplers = {}
+    for oid, entries in by_object.items():
+        if len(entries) < 2:
+            continue
+        samplers[oid] = GMMAdaptiveSampler(
+            np.array([e["action"] for e in entries]), np.stack([z[e["id"]] for e in entries]),
+            np.array([e["label"] for e in entries]), config.gmm, SamplingConfig(), seed=derive_seed(config.seed, oid, 0, len(entries)))
+    return samplers
+
+
+def collect(config: CollectConfig) -> dict:
+    """Run every stage; returns the per-stage summaries and the labelling report."""
+    config.out.mkdir(parents=True, exist_ok=True)
+    info = {"rig": "ring5", "robot": config.robot, "seed": config.seed, "objects": [list(o) for o in config.objects],
+            "per_object": config.per_object, "dof_fraction": config.dof_fraction}
+    report: dict = {"stages": []}
+    with DatasetWriter(config.out, info) as writer:
+        explore = [t for s in EXPLORE_SAMPLERS for t in _tasks(config, s, range(config.per_object.get(s, 0)))]
+        report["stages"].append(run_tasks(config, writer, explore, "explore"))
+        n_gmm = config.per_object.get("gmm", 0)
+        if writer.entries:
+            report["labelling"] = _label(config)
+        for r in range(config.rounds if n_gmm > 0 else 0):
+            indices = range(r * n_gmm // config.rounds, (r + 1) * n_gmm // config.rounds)
+            tasks = _tasks(config, "gmm", indices, fit_gmm_samplers(config))
+            report["stages"].append(run_tasks(config, writer, tasks, f"adapt round {r + 1}/{config.rounds}"))
+            report["labelling"] = _label(config)
+        check_no_leak(writer.entries)
+    return report

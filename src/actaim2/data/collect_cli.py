@@ -1,0 +1,106 @@
+"""`actaim2 collect`: self-supervised data collection in simulation (random, grasp, GMM-adaptive).
+
+Examples:
+    actaim2 collect --out data/ds --random 50 --grasp 50 --gmm 50            # the paper's mix, all splits
+    actaim2 collect --out data/small --instances-per-category 1 --random 10 --grasp 10 --gmm 5
+    actaim2 collect --out data/ds --vgg19-weights vgg19-dcbb9e9d.pth         # E = a user's VGG-19
+
+Interrupt it at any time; the same command resumes where it stopped.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+DEFAULT_SPLITS = "train_seen,train_unseen_instance,heldout_category"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--out", type=Path, required=True, help="dataset folder (created, or resumed if it exists)")
+    parser.add_argument("--splits", default=DEFAULT_SPLITS, help=f"catalogue splits to collect on (default {DEFAULT_SPLITS})")
+    parser.add_argument("--categories", default="", help="only these categories (comma separated; default all in the splits)")
+    parser.add_argument("--instances-per-category", type=int, default=0, help="only the first N instances of each category per split (0 = all)")
+    parser.add_argument("--object", action="append", default=[], metavar="CATEGORY:INSTANCE",
+                        help="collect on exactly these objects (repeatable; overrides --splits/--categories)")
+    parser.add_argument("--random", type=int, default=50, help="random-sampling trajectories per object")
+    parser.add_argument("--grasp", type=int, default=50, help="heuristic-grasp trajectories per object")
+    parser.add_argument("--gmm", type=int, default=50, help="GMM-adaptive trajectories per object")
+    parser.add_argument("--rounds", type=int, default=1, help="GMM refits while collecting the adaptive trajectories")
+    parser.add_argument("--workers", type=int, default=2, help="worker processes (0 = in this process)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--robot", default="panda", help="robot preset or YAML (actaim2.robots)")
+    parser.add_argument("--render-path", default="auto", choices=["auto", "sapien", "raycast"])
+    parser.add_argument("--encoder", type=Path, help="a saved encoder E (ImageEncoder.save); default: train one on the data")
+    parser.add_argument("--vgg19-weights", type=Path, help="torchvision VGG-19 state_dict file: use VGG-19 as E")
+    parser.add_argument("--encoder-steps", type=int, default=1500, help="training steps of the default encoder")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+def _objects(args: argparse.Namespace) -> list[tuple[str, int]]:
+    from actaim2.sim.objects.catalog import split_instances
+
+    if args.object:
+        objects = []
+        for text in args.object:
+            category, _, instance = text.partition(":")
+            if not instance.isdigit():
+                raise ValueError(f"--object takes CATEGORY:INSTANCE, got {text!r}")
+            objects.append((category, int(instance)))
+        return objects
+    categories = {c for c in args.categories.split(",") if c}
+    objects = []
+    for split in (s for s in args.splits.split(",") if s):
+        chosen: dict[str, list[int]] = {}
+        for category, instance in split_instances(split):
+            if not categories or category in categories:
+                chosen.setdefault(category, []).append(instance)
+        for category, instances in chosen.items():
+            keep = instances[: args.instances_per_category] if args.instances_per_category > 0 else instances
+            objects += [(category, i) for i in keep]
+    return objects
+
+
+def main(args: argparse.Namespace) -> int:
+    from actaim2.data.collect import CollectConfig, collect
+    from actaim2.data.encoder import ImageEncoder
+    from actaim2.data.splits import split_of
+
+    try:
+        objects = _objects(args)
+        for category, instance in objects:
+            split_of(category, instance)  # only catalogued objects: their split must be known
+    except ValueError as exc:
+        print(f"actaim2 collect: {exc}", file=sys.stderr)
+        return 2
+    if not objects:
+        print("actaim2 collect: no object selected", file=sys.stderr)
+        return 2
+    if min(args.random, args.grasp, args.gmm) < 0 or args.workers < 0 or args.rounds < 1:
+        print("actaim2 collect: counts and --workers must be >= 0, --rounds >= 1", file=sys.stderr)
+        return 2
+    encoder = args.encoder
+    if args.vgg19_weights is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        encoder = args.out / "encoder-vgg19.pt"
+        try:
+            ImageEncoder.vgg19(args.vgg19_weights).save(encoder)
+        except (ValueError, RuntimeError, FileNotFoundError) as exc:
+            print(f"actaim2 collect: {args.vgg19_weights}: {exc}", file=sys.stderr)
+            return 2
+    config = CollectConfig(
+        out=args.out, objects=tuple(objects), per_object={"random": args.random, "grasp": args.grasp, "gmm": args.gmm},
+        workers=args.workers, seed=args.seed, robot=args.robot, render_path=args.render_path, rounds=args.rounds,
+        encoder=encoder, encoder_steps=args.encoder_steps, show_progress=not args.no_progress,
+    )
+    report = collect(config)
+    for stage in report["stages"]:
+        rate = stage["trajectories"] / stage["seconds"] if stage["seconds"] else float("nan")
+        print(f"{stage['stage']}: {stage['trajectories']} stored, {stage['skipped']} skipped, {stage['already_done']} already done, "
+              f"{stage['seconds']:.0f} s ({rate:.2f} trajectories/s)")
+    if "labelling" in report:
+        held = report["labelling"].get("other_splits")
+        accuracy = f", accuracy on the other splits {100 * held['accuracy']:.1f}%" if held else ""
+        print(f"visual label: threshold {report['labelling']['threshold']:.4g}{accuracy}")
+    print(f"statistics: actaim2 stats {args.out}")
+    return 0

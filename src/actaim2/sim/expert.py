@@ -1,0 +1,329 @@
+"""Scripted expert with privileged state: moves any movable part of an object either way.
+
+It is the proof that every generated object can be manipulated by the simulated robot, and a
+source of demonstrations. It reads what a policy never sees - the part's link pose, its
+joint axis and the handle annotation - and follows the paper's four-phase primitive:
+
+  INIT        pre-pose: the grasp pose backed off along the approach axis, gripper open
+  REACH       straight line along the approach axis to p1
+  GRASP       the gripper closes at p1 (on the handle; or, to push, just before it)
+  MANIPULATE  p1 -> p2 along the part's motion: a straight line for a prismatic joint, an
+              arc about the hinge for a revolute one (the hand turns with the part)
+
+then opens the gripper and backs off. Opening means moving the DoF towards its upper limit,
+closing towards its lower limit; a drawer (prismatic) is closed by pushing it with the closed
+fingers, everything else is moved by grasping its handle. Every contact is physical: the
+gripper holds the handle by friction only.
+
+Inverse kinematics is the control package's (:class:`actaim2.control.ik.IKSolver`, with its
+self-collision and ground checks); joint waypoints are timed for a Cartesian speed and the
+joint velocity limits, then executed by :meth:`SimEnv.follow_trajectory`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from actaim2.control.collision import CollisionChecker, Workspace, points_away_from
+from actaim2.control.ik import IKOptions, IKSolver
+from actaim2.control.model import RobotModel
+from actaim2.sim.env import SimEnv
+from actaim2.sim.objects.model import Handle
+from actaim2.sim.objects.surface import surface_points
+from actaim2.sim.success import moved_fraction
+
+INIT, REACH, GRASP, MANIPULATE = 0, 1, 2, 3  # Keypose.phase values (DESIGN.md)
+FLIP = np.diag([-1.0, -1.0, 1.0, 1.0])  # the same grasp with the fingers swapped (turned about the approach axis)
+HANDLE_CLEARANCE = 0.08  # m: obstacle points this close to the handle are ignored (the hand goes there)
+FREE_MOVE_CLEARANCE = 0.1  # m: the joint-space move ends this much farther back than the pre-pose
+# Grasp variants per handle kind, in order: the approach turned about the TCP x axis (the
+# bar's axis: free for a round grip) and about its y axis (the closing direction: the pinch
+# stays across the bar). A Panda cannot point its hand horizontally near shoulder height
+# (joint 6 limit) nor straight down far away, so handles there are taken at an angle; flat
+# grips (lips, toggles, sliders) allow less.
+_ROUND = [(a, 0) for a in (0, 25, 45, -25, -45)] + [(0, 25), (0, -25)]
+TILTS = {"bar": _ROUND, "knob": _ROUND,
+         "lever": _ROUND + [(0, 40), (0, -40)],
+         "spout": [(0, 0), (25, 0), (-25, 0), (0, 25), (0, -25), (0, 40), (0, -40)],
+         "edge": [(0, 0), (20, 0), (30, 0), (-20, 0)],
+         "toggle": [(0, 0), (20, 0), (-20, 0), (0, 20), (0, -20)],
+         "slider": [(0, 0), (20, 0), (-20, 0), (0, 20), (0, -20)]}
+
+
+@dataclass(frozen=True)
+class ExpertTask:
+    """Move DoF ``joint`` towards its upper (``direction`` +1, open) or lower (-1, close) limit."""
+
+    joint: str
+    direction: int
+
+
+@dataclass
+class ExpertResult:
+    task: ExpertTask
+    success: bool  # the DoF moved the asked way by more than 30% of its range
+    moved: float  # signed DoF change as a fraction of its range
+    strategy: str  # "grasp" or "push"
+    message: str
+    keyposes: list[tuple[int, np.ndarray, bool]] = field(default_factory=list)  # (phase, T_world_tcp, gripper closed)
+
+
+def expert_tasks(env: SimEnv) -> list[ExpertTask]:
+    """Both directions of every movable part that has a handle annotation."""
+    handled = {h.joint for h in env.object.handles}
+    return [ExpertTask(name, d) for name in env.object.dof_names if name in handled for d in (+1, -1)]
+
+
+class PlanningError(RuntimeError):
+    pass
+
+
+class ScriptedExpert:
+    """Plans and executes :class:`ExpertTask` s in a :class:`SimEnv` (reset it first)."""
+
+    def __init__(self, env: SimEnv, approach_distance: float = 0.1, push_standoff: float = 0.04, target_fraction: float = 0.9,
+                 speed: float = 0.15, manipulation_speed: float = 0.08, seed: int = 0):
+        self.env = env
+        self.approach_distance = approach_distance
+        self.push_standoff = push_standoff
+        self.target_fraction = target_fraction
+        self.speed = speed
+        self.manipulation_speed = manipulation_speed
+        model = RobotModel(env.spec)
+        self._checker = CollisionChecker(model, Workspace(table_height=0.0))
+        self._ik_local = IKSolver(model, self._checker, IKOptions(restarts=0))
+        self.seed = seed
+        self._vmax = env.spec.max_velocity
+
+    def run(self, task: ExpertTask) -> ExpertResult:
+        """Plan, execute, release and back off; the result is measured after the release."""
+        env, obj = self.env, self.env.object
+        self._rng = np.random.default_rng(self.seed)
+        i = obj.dof_index(task.joint)
+        joint = obj.joints[i]
+        try:
+            handle = self._handle(task.joint)
+        except PlanningError as exc:
+            return ExpertResult(task, False, 0.0, "none", str(exc))
+        # a drawer is closed by pushing it: its closing motion runs along the approach axis
+        approach_world = obj.link(handle.link).entity_pose.to_transformation_matrix()[:3, :3] @ np.asarray(handle.approach, float)
+        opening = joint.get_global_pose().to_transformation_matrix()[:3, 0]
+        push = joint.type == "prismatic" and task.direction < 0 and float(-opening @ approach_world) > 0.8
+        strategy = "push" if push else "grasp"
+        q0 = obj.qpos()
+        span = obj.upper[i] - obj.lower[i]
+        goal = obj.lower[i] + (self.target_fraction if task.direction > 0 else 1.0 - self.target_fraction) * span
+        if push:
+            goal = obj.lower[i] - 0.005  # the panel is pushed just past its stop
+        try:
+            approach, manipulation, retreat, keyposes = self._plan(handle, joint, q0[i], goal, push)
+        except PlanningError as exc:
+            return ExpertResult(task, False, 0.0, strategy, f"planning failed: {exc}")
+        env.grip(closed=False)
+        self._move_free(approach.joints[0])
+        self._execute(approach, self.speed)
+        env.grip(closed=True)
+        if not push:  # closing the fingers may have nudged the part: follow it from where it is now
+            manipulation = self._regrasped(handle, joint, i, goal, manipulation)
+        self._execute(manipulation, self.manipulation_speed)
+        if not push:  # a pushing hand backs off closed: opening fingers could hook the handle
+            env.grip(closed=False)
+        self._execute(retreat, self.speed)
+        moved = float(moved_fraction(q0, obj.qpos(), obj.lower, obj.upper)[i])
+        success = moved * task.direction > 0.3
+        return ExpertResult(task, success, moved, strategy, "ok" if success else f"moved {moved:+.2f} of the range", keyposes)
+
+    # -- planning -----------------------------------------------------------------------------
+    def _handle(self, joint_name: str) -> Handle:
+        for h in self.env.object.handles:
+            if h.joint == joint_name:
+                return h
+        raise PlanningError(f"no handle annotation for {joint_name} in {self.env.object.folder}/handles.json")
+
+    def _plan(self, handle: Handle, joint, q_now: float, q_goal: float, push: bool):
+        """Approach, manipulation and retreat motions (and the four keyposes) of the first variant
+        that IK follows without jumps and whose free move misses the object. Variants: the
+        approach tilted about the handle's bar axis (where the handle allows it), the fingers
+        either way round, for pushes the contact point beside or below the handle, and several
+        arm configurations for the start (nearest the current one first)."""
+        obj = self.env.object
+        link_now = obj.link(handle.link).entity_pose.to_transformation_matrix()
+        # the object as obstacle points, minus the handle region the hand is meant to touch
+        handle_point = (link_now @ handle.tcp_in_link())[:3, 3]
+        self._checker.set_cloud(points_away_from(surface_points(obj.links), handle_point, HANDLE_CLEARANCE))
+        T_axis = joint.get_global_pose().to_transformation_matrix()
+        axis, origin = T_axis[:3, 0], T_axis[:3, 3]
+        if push:
+            # the fingertips press the panel beside (or below) the handle, never the handle itself:
+            # pushing a handle, fingers slip over it and hook it on the way back
+            side = handle.span / 2 + 0.025
+            offsets = [(side, 0.0), (-side, 0.0), (0.0, 0.03), (0.0, -0.03)]
+            travel = self.push_standoff + (q_now - q_goal)
+            moves = [_part_motion("prismatic", axis, origin, -d) for d in np.linspace(0.0, travel, int(np.ceil(travel / 0.01)) + 1)]
+        else:
+            offsets = [None]
+            step = 0.01 if joint.type == "prismatic" else np.deg2rad(3.0)
+            qs = np.linspace(q_now, q_goal, max(2, int(np.ceil(abs(q_goal - q_now) / step)) + 1))
+            moves = [_part_motion(joint.type, axis, origin, q - q_now) for q in qs]
+        errors = []
+        for rx, ry in np.deg2rad(TILTS.get(handle.kind, [(0, 0)])):
+            for flip in (np.eye(4), FLIP):
+                for offset in offsets:
+                    grasp = link_now @ handle.tcp_in_link() @ _rotate("x", rx) @ _rotate("y", ry) @ flip
+                    if offset is not None:  # p1: standing off the contact point on the panel
+                        grasp = grasp @ _translate(offset[0], offset[1], handle.depth - self.push_standoff)
+                    path = [move @ grasp for move in moves]
+                    pre = grasp @ _translate(0, 0, -self.approach_distance)
+                    back = [path[-1] @ _translate(0, 0, -d) for d in np.linspace(0.0, self.approach_distance, 5)]
+                    # start the straight approach farther back when the arm can get there
+                    for clearance in (FREE_MOVE_CLEARANCE, 0.0):
+                        start = grasp @ _translate(0, 0, -self.approach_distance - clearance)
+                        starts = self._configurations(start)
+                        if starts:
+                            break
+                    for q_start in starts:
+                        if self._free_move_collides(q_start):
+                            errors.append("the free move to the approach start hits the object")
+                            continue
+                        try:
+                            approach = self._follow(_line(start, grasp), q_start)
+                            manipulation = self._follow(path, approach.joints[-1])
+                            retreat = self._follow(back, manipulation.joints[-1])
+                        except PlanningError as exc:
+                            errors.append(str(exc))
+                            continue
+                        keyposes = [(INIT, pre, False), (REACH, grasp, False), (GRASP, grasp, True), (MANIPULATE, path[-1], True)]
+                        return approach, manipulation, retreat, keyposes
+        raise PlanningError(f"{len(errors)} variants failed, e.g. {errors[0] if errors else 'no IK solution for any start pose'}")
+
+    def _regrasped(self, handle: Handle, joint, i: int, q_goal: float, planned: "Motion") -> "Motion":
+        """The manipulation re-planned from the part's and hand's actual poses after the grasp
+        (the planned one if IK cannot follow the new path)."""
+        obj = self.env.object
+        q_now = float(obj.qpos()[i])
+        T_axis = joint.get_global_pose().to_transformation_matrix()
+        step = 0.01 if joint.type == "prismatic" else np.deg2rad(3.0)
+        qs = np.linspace(q_now, q_goal, max(2, int(np.ceil(abs(q_goal - q_now) / step)) + 1))
+        tcp = self.env.tcp_pose()
+        path = [_part_motion(joint.type, T_axis[:3, 0], T_axis[:3, 3], q - q_now) @ tcp for q in qs]
+        try:
+            return self._follow(path, self.env.robot.arm_positions())
+        except PlanningError:
+            return planned
+
+    def _configurations(self, T: np.ndarray, seeds: int = 8, keep: int = 3) -> list[np.ndarray]:
+        """Distinct IK solutions for ``T``: the one nearest the current arm first (the free move
+        there sweeps the least), then others from random seeds, largest margin to the joint
+        limits first (paths from there rarely run into a limit)."""
+        model = self._ik_local.robot
+        found = []
+        for k in range(seeds):
+            seed = self.env.robot.arm_positions() if k == 0 else model.random_angles(self._rng)
+            result = self._ik_local.solve(T, seed, rng=self._rng, use_cloud=True)
+            if result.success and all(np.abs(result.angles - q).max() > 0.2 for q in found):
+                found.append(result.angles)
+        bounded = np.isfinite(model.lower) & np.isfinite(model.upper)
+        lo, hi = model.lower[bounded], model.upper[bounded]
+        margin = [float(np.min(np.minimum(q[bounded] - lo, hi - q[bounded]) / (hi - lo))) for q in found]
+        near = found[:1] if found and np.abs(found[0] - self.env.robot.arm_positions()).max() < np.pi else []
+        return (near + [found[k] for k in np.argsort(margin)[::-1] if found[k] is not (near[0] if near else None)])[:keep]
+
+    def _solve(self, T: np.ndarray, seed: np.ndarray, solver: IKSolver) -> np.ndarray:
+        result = solver.solve(T, seed, rng=self._rng, use_cloud=False)
+        if not result.success:
+            raise PlanningError(f"IK at {np.round(T[:3, 3], 3)}: {result.message}")
+        return result.angles
+
+    def _follow(self, poses: list[np.ndarray], seed: np.ndarray) -> "Motion":
+        """IK along a dense Cartesian path, each pose seeded by the previous solution."""
+        out, q = [], seed
+        for T in poses:
+            q_next = self._solve(T, q, self._ik_local)
+            if np.abs(q_next - q).max() > 0.35:
+                raise PlanningError(f"IK jumps {np.abs(q_next - q).max():.2f} rad along the path at {np.round(T[:3, 3], 3)}")
+            out.append(q_next)
+            q = q_next
+        return Motion(np.asarray(out), poses)
+
+    def _free_move_collides(self, q1: np.ndarray) -> bool:
+        """Does the joint-space move from the current arm to ``q1`` touch the object (or ground)?"""
+        q0 = self.env.robot.arm_positions()
+        return any(self._checker.check(q0 + s * (q1 - q0), use_cloud=True) is not None for s in np.linspace(0.0, 1.0, 16)[1:])
+
+    # -- execution ----------------------------------------------------------------------------
+    def _move_free(self, q1: np.ndarray) -> None:
+        """One joint-space move (minimum-jerk profile, a straight line in joint space) to ``q1``."""
+        q0 = self.env.robot.arm_positions()
+        duration = max(0.8, 1.5 * float(np.max(np.abs(q1 - q0) / self._vmax)))
+        s = np.linspace(0.0, 1.0, 11)[1:]
+        pos = q0 + np.outer(10 * s**3 - 15 * s**4 + 6 * s**5, q1 - q0)
+        vel = np.outer((30 * s**2 - 60 * s**3 + 30 * s**4) / duration, q1 - q0)
+        self.env.follow_trajectory(s * duration, pos, vel, settle=0.2)
+
+    def _execute(self, motion: "Motion", speed: float) -> None:
+        """Follow a motion's joint waypoints, timed for the Cartesian speed and joint limits."""
+        joints, poses = motion.joints, motion.poses
+        if len(joints) < 2:
+            return
+        cart = np.linalg.norm(np.diff([T[:3, 3] for T in poses], axis=0), axis=1)
+        rot = np.array([_angle(a, b) for a, b in zip(poses[:-1], poses[1:])])
+        dq = np.abs(np.diff(joints, axis=0)) / (0.5 * self._vmax)
+        dt = np.maximum.reduce([cart / speed, rot * 0.12 / speed, dq.max(axis=1),
+                                np.full(len(cart), 0.02)])
+        times = np.cumsum(dt)
+        vel = np.gradient(joints[1:], times, axis=0) if len(times) > 1 else np.zeros_like(joints[1:])
+        vel[-1] = 0.0
+        self.env.follow_trajectory(times, joints[1:], vel, settle=0.15)
+
+
+@dataclass
+class Motion:
+    """Joint waypoints (first = where the motion starts) and the TCP poses they reach."""
+
+    joints: np.ndarray
+    poses: list[np.ndarray]
+
+
+def _line(A: np.ndarray, B: np.ndarray, step: float = 0.01) -> list[np.ndarray]:
+    """Poses from A to B along a straight line (orientation of A), about ``step`` apart."""
+    n = max(2, int(np.ceil(np.linalg.norm(B[:3, 3] - A[:3, 3]) / step)) + 1)
+    poses = []
+    for s in np.linspace(0.0, 1.0, n):
+        T = A.copy()
+        T[:3, 3] = (1 - s) * A[:3, 3] + s * B[:3, 3]
+        poses.append(T)
+    return poses
+
+
+def _translate(x: float, y: float, z: float) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+def _rotate(axis: str, angle: float) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_euler(axis, angle).as_matrix()
+    return T
+
+
+def _part_motion(joint_type: str, axis: np.ndarray, origin: np.ndarray, dq: float) -> np.ndarray:
+    """World transform that moves a part by ``dq`` along (prismatic) or about (revolute) its joint axis."""
+    T = np.eye(4)
+    if joint_type == "prismatic":
+        T[:3, 3] = axis * dq
+        return T
+    from scipy.spatial.transform import Rotation
+
+    R = Rotation.from_rotvec(axis * dq).as_matrix()
+    T[:3, :3] = R
+    T[:3, 3] = origin - R @ origin
+    return T
+
+
+def _angle(A: np.ndarray, B: np.ndarray) -> float:
+    R = A[:3, :3].T @ B[:3, :3]
+    return float(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1)))

@@ -1,0 +1,42 @@
+"""GripperCommand goals with the semantics of ros2_control's gripper_action_controller.
+
+A goal ends when the finger position is within ``goal_tolerance`` of the command (reached), or
+when the fingers have not moved faster than ``stall_velocity`` for ``stall_timeout`` seconds
+(stalled: closed on a handle, or blocked). With ``allow_stalling`` a stall is a success - a
+gripper closed on a handle is exactly what a grasp looks like - otherwise it aborts.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class GripperOutcome:
+    succeeded: bool
+    reached_goal: bool
+    stalled: bool
+
+
+class GripperGoal:
+    """One GripperCommand goal being executed (positions in finger joint units)."""
+
+    def __init__(
+        self, target: float, now: float, goal_tolerance: float, stall_velocity: float, stall_timeout: float, allow_stalling: bool
+    ) -> None:
+        self.target = float(target)
+        self.goal_tolerance = goal_tolerance
+        self.stall_velocity = stall_velocity
+        self.stall_timeout = stall_timeout
+        self.allow_stalling = allow_stalling
+        self._last_movement = now
+
+    def update(self, now: float, position: float, velocity: float) -> GripperOutcome | None:
+        """The goal's outcome given the finger state at ``now``, or None while it runs."""
+        if abs(position - self.target) < self.goal_tolerance:
+            return GripperOutcome(succeeded=True, reached_goal=True, stalled=False)
+        if abs(velocity) > self.stall_velocity:
+            self._last_movement = now
+            return None
+        if now - self._last_movement > self.stall_timeout:
+            return GripperOutcome(succeeded=self.allow_stalling, reached_goal=False, stalled=True)
+        return None
