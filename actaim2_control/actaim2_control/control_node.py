@@ -58,7 +58,8 @@ PARAMETERS = {
     "gripper_max_effort": (40.0, "GripperCommand max_effort (N): the squeeze on a handle"),
     "velocity_scaling": (0.5, "fraction of the velocity/acceleration/jerk limits for goals with velocity_scaling = 0"),
     "server_wait": (3.0, "s to wait for an action server (arm: then fall back to the JTC topic)"),
-    "goal_tolerance": (0.02, "rad: /joint_states this close to the last trajectory point = the arm got there"),
+    "joint_states_wait": (5.0, "s a goal waits for /joint_states when there are none yet (start-up discovery)"),
+    "goal_tolerance": (0.01, "rad: /joint_states this close to the last trajectory point, and still, = the arm got there"),
     "settle_timeout": (2.0, "s after the controller's result for /joint_states to reach the goal tolerance"),
     "timeout_factor": (3.0, "the controller gets duration * factor + timeout_margin s to finish a trajectory"),
     "timeout_margin": (5.0, "s, see timeout_factor"),
@@ -87,6 +88,7 @@ class ControlNode(Node):
         spec = load_robot_spec(p["robot"])
         self._frames = {p["world_frame"], spec.root_link}
         self._default_scaling = float(p["velocity_scaling"])
+        self._joint_states_wait = float(p["joint_states_wait"])
         robot = RobotModel(spec)
         workspace = Workspace(float(p["table_height"]), tuple(p["workspace_min"]), tuple(p["workspace_max"]))
         checker = CollisionChecker(robot, workspace)
@@ -169,6 +171,7 @@ class ControlNode(Node):
             )
             scaling = float(goal.velocity_scaling) or self._default_scaling
             self._executor.cancel_requested = lambda: handle.is_cancel_requested
+            self._executor.wait_for_joint_states(self._joint_states_wait)  # after start-up discovery takes seconds
 
             def feedback(phase: int, progress: float) -> None:
                 handle.publish_feedback(ExecuteKeypose.Feedback(phase=phase, progress=float(progress)))
@@ -193,9 +196,12 @@ class ControlNode(Node):
             handle.succeed()
         else:
             handle.abort()
-        log = self.get_logger().info if outcome.success else self.get_logger().warning
-        log(f"keypose: {outcome.message} (position error {outcome.position_error * 1000:.1f} mm, "
-            f"orientation error {np.degrees(outcome.orientation_error):.2f} deg)")
+        text = (f"keypose: {outcome.message} (position error {outcome.position_error * 1000:.1f} mm, "
+                f"orientation error {np.degrees(outcome.orientation_error):.2f} deg)")
+        if outcome.success:
+            self.get_logger().info(text)
+        else:
+            self.get_logger().warning(text)
         return result
 
 

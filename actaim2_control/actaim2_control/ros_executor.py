@@ -4,8 +4,8 @@ Implements :class:`actaim2.control.executor.Executor` over ROS 2 the way a real 
   * arm: a FollowJointTrajectory goal to the controller named by a parameter; when no such
     action server appears within ``server_wait`` the JointTrajectory goes to the JTC topic
     instead (no result there: completion comes from /joint_states alone);
-  * completion: the action result, then /joint_states within ``goal_tolerance`` of the last
-    point, each with a timeout (wall clock, so a dead simulator cannot hang a goal);
+  * completion: the action result, then /joint_states still and within ``goal_tolerance`` of
+    the last point, each with a timeout (wall clock, so a dead simulator cannot hang a goal);
   * cancel: a Ruckig stop from the measured state at full limits replaces the running
     trajectory (the controller's "new goal replaces the running one"), then the arm must be
     still - well within 0.5 s;
@@ -44,7 +44,7 @@ class ExecutionSettings:
     gripper_action: str
     gripper_max_effort: float
     server_wait: float  # s to wait for an action server before giving up (arm: before the topic fallback)
-    goal_tolerance: float  # rad: /joint_states this close to the last point = reached
+    goal_tolerance: float  # rad: /joint_states this close to the last point (and still) = reached
     settle_timeout: float  # s after the controller's result (or the trajectory's end) to get there
     timeout_factor: float  # the controller gets duration * factor + margin to report a result
     timeout_margin: float
@@ -141,12 +141,19 @@ class RosExecutor:
         return self._settled(trajectory.positions[-1])
 
     def _settled(self, goal: np.ndarray) -> StepResult:
-        """/joint_states within tolerance of the goal before the settle timeout."""
+        """/joint_states still and within tolerance of the goal before the settle timeout."""
         s = self._settings
-        error = lambda: float(np.max(np.abs(self.arm_state().position - goal)))  # noqa: E731
-        if _wait(lambda: error() <= s.goal_tolerance, s.settle_timeout):
+
+        def there() -> bool:
+            state = self.arm_state()
+            return bool(np.max(np.abs(state.position - goal)) <= s.goal_tolerance
+                        and np.max(np.abs(state.velocity)) < s.stopped_velocity)
+
+        if _wait(there, s.settle_timeout):
             return StepResult(True, "reached")
-        return StepResult(False, f"arm stopped {error():.4f} rad from the goal (tolerance {s.goal_tolerance:g} rad)")
+        state = self.arm_state()
+        return StepResult(False, f"arm not settled at the goal: {np.max(np.abs(state.position - goal)):.4f} rad away "
+                                 f"(tolerance {s.goal_tolerance:g}), moving at {np.max(np.abs(state.velocity)):.3f} rad/s")
 
     def _stop(self) -> StepResult:
         """Brake to a standstill within the full limits, replacing the running trajectory."""

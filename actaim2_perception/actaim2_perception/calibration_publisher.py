@@ -7,13 +7,11 @@ simulator's do, so the fusion node needs no file of its own. YAML format: see
 """
 from __future__ import annotations
 
-import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from actaim2.perception.calibration import load_calibration
-from actaim2.runtime import apply_ros_defaults
+from actaim2_perception.node_runner import run
 from actaim2_perception.transforms import StaticTransformPublisher, matrix_to_transform
 
 
@@ -34,22 +32,7 @@ class CalibrationPublisher(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    apply_ros_defaults()
-    rclpy.init(args=args)
-    try:
-        node = CalibrationPublisher()
-    except (OSError, ValueError) as exc:
-        rclpy.logging.get_logger("calibration_publisher").error(f"cannot start: {exc}")
-        rclpy.try_shutdown()
-        return 1
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run(CalibrationPublisher, "calibration_publisher", args)
 
 
 if __name__ == "__main__":

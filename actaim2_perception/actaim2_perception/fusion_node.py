@@ -6,19 +6,23 @@ extrinsics (/tf_static or a calibration YAML), keeps the self-filter at the late
 clouds, missing fields, unknown frames, stamps too far apart, nothing inside the workspace) is
 reported once per cause and topic, throttled, and the set is dropped: nothing half-made is
 ever published, and the node keeps running.
+
+Processing runs in one worker thread that always takes the newest complete set and drops older
+ones, while the executor thread keeps receiving: a slow set never queues stale clouds behind
+it (latency stays one processing time), and receiving large clouds overlaps with fusing the
+previous set (numpy and torch release the GIL).
 """
 from __future__ import annotations
 
 import array
+import threading
 import time
 from functools import partial
 
 import numpy as np
-import rclpy
 import torch
 from actaim2_msgs.msg import OrthoViews
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.time import Time
@@ -33,7 +37,7 @@ from actaim2.perception.self_filter import DEFAULT_MARGIN, RobotSelfFilter
 from actaim2.perception.static_tf import StaticTransformBuffer, UnknownFrameError
 from actaim2.perception.time_sync import ApproximateTimeSync
 from actaim2.robots import load_robot_spec
-from actaim2.runtime import apply_ros_defaults
+from actaim2_perception.node_runner import run
 from actaim2_perception.pointcloud2 import from_msg, to_msg
 from actaim2_perception.transforms import listen_tf_static
 
@@ -104,7 +108,12 @@ class FusionNode(Node):
             PerceptionConfig(fusion, int(p["resolution"]), bool(p["remove_robot_fused"]), bool(p["remove_robot_views"])),
             self_filter,
         )
-        self._have_joints = not needs_robot
+        self._joint_state: JointState | None = None  # newest, applied by the worker before each set
+        self._needs_joints = needs_robot
+        self._pending: list[PointCloud2] | None = None
+        self._wakeup = threading.Condition()
+        self._running = True
+        self._worker = threading.Thread(target=self._work, name="fusion_worker", daemon=True)
 
         self._tf = StaticTransformBuffer()
         if p["calibration_file"]:
@@ -122,6 +131,7 @@ class FusionNode(Node):
             self.create_subscription(PointCloud2, topic, partial(self._on_cloud, index), qos_profile_sensor_data)
         if needs_robot:
             self.create_subscription(JointState, p["joint_states_topic"], self._on_joint_state, 10)
+        self._worker.start()
         self.get_logger().info(
             f"fusing {self._topics} into '{self._world}' (cube {list(fusion.center)} +- {fusion.half_extent} m, "
             f"{p['resolution']} px views, extrinsics from {p['calibration_file'] or '/tf_static'})"
@@ -131,8 +141,7 @@ class FusionNode(Node):
         if len(msg.position) != len(msg.name):
             self._report("joint_states", f"JointState with {len(msg.name)} names but {len(msg.position)} positions")
             return
-        self._perception.self_filter.set_joint_positions(list(msg.name), list(msg.position))
-        self._have_joints = True
+        self._joint_state = msg
 
     def _on_cloud(self, index: int, msg: PointCloud2) -> None:
         group = self._sync.add(index, Time.from_msg(msg.header.stamp).nanoseconds, msg)
@@ -144,7 +153,28 @@ class FusionNode(Node):
                     f"{self._sync.slop_ns / 1e6:.1f} ms",
                 )
             return
-        self._process(group)
+        with self._wakeup:
+            self._pending = group  # replaces a set the worker has not started: only the newest counts
+            self._wakeup.notify()
+
+    def _work(self) -> None:
+        while True:
+            with self._wakeup:
+                self._wakeup.wait_for(lambda: self._pending is not None or not self._running)
+                if not self._running:
+                    return
+                group, self._pending = self._pending, None
+            try:
+                self._process(group)
+            except Exception as exc:  # noqa: BLE001 - a bug must not silently stop the worker thread
+                self._report(f"error:{type(exc).__name__}", f"processing failed: {type(exc).__name__}: {exc}")
+
+    def destroy_node(self) -> None:
+        with self._wakeup:
+            self._running = False
+            self._wakeup.notify()
+        self._worker.join(timeout=5.0)
+        super().destroy_node()
 
     def _decode(self, topic: str, msg: PointCloud2) -> CameraCloud | None:
         try:
@@ -169,9 +199,12 @@ class FusionNode(Node):
         clouds = [self._decode(topic, msg) for topic, msg in zip(self._topics, msgs)]
         if any(c is None for c in clouds):
             return
-        if not self._have_joints:
-            self._report("joint_states", "no JointState received yet: the robot cannot be removed")
-            return
+        if self._needs_joints:
+            joints = self._joint_state
+            if joints is None:
+                self._report("joint_states", "no JointState received yet: the robot cannot be removed")
+                return
+            self._perception.self_filter.set_joint_positions(list(joints.name), list(joints.position))
         try:
             observation = self._perception.process(clouds)
         except EmptyObservationError as exc:
@@ -212,22 +245,7 @@ class FusionNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    apply_ros_defaults()
-    rclpy.init(args=args)
-    try:
-        node = FusionNode()
-    except (OSError, ValueError) as exc:  # unreadable calibration file, unknown robot preset
-        rclpy.logging.get_logger("fusion_node").error(f"cannot start: {exc}")
-        rclpy.try_shutdown()
-        return 1
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run(FusionNode, "fusion_node", args)
 
 
 if __name__ == "__main__":

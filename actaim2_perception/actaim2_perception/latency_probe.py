@@ -12,16 +12,14 @@ import json
 import time
 
 import numpy as np
-import rclpy
 from actaim2_msgs.msg import OrthoViews
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.time import Time
 from sensor_msgs.msg import JointState, PointCloud2
 
-from actaim2.runtime import apply_ros_defaults
+from actaim2_perception.node_runner import run
 from actaim2_perception.pointcloud2 import to_msg
 from actaim2_perception.transforms import StaticTransformPublisher, matrix_to_transform
 
@@ -102,21 +100,11 @@ class LatencyProbe(Node):
             result["error"] = error
         print(json.dumps(result), flush=True)
         self.done = True
+        self.context.try_shutdown()  # ends rclpy.spin in node_runner.run
 
 
 def main(args: list[str] | None = None) -> int:
-    apply_ros_defaults()
-    rclpy.init(args=args)
-    node = LatencyProbe()
-    try:
-        while rclpy.ok() and not node.done:
-            rclpy.spin_once(node, timeout_sec=0.1)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run(LatencyProbe, "latency_probe", args)
 
 
 if __name__ == "__main__":

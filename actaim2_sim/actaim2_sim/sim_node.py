@@ -6,11 +6,12 @@ Publishes what the robot driver, the cameras and ros2_control publish on the rea
 privileged /object_state. Serves FollowJointTrajectory and GripperCommand like ros2_control's
 joint_trajectory_controller and gripper_action_controller, the JTC topic, and /reset_scene.
 
-Threading: one timer (mutually exclusive with /reset_scene and the JTC topic) steps physics,
-runs the controllers and renders the cameras when their sim-time period is due; action execute
-callbacks run in a reentrant group and just wait for the loop to report an outcome, so the
-node needs a MultiThreadedExecutor. Physics keeps priority: camera frames that fall due while
-the loop is behind are skipped, never queued.
+Threading: one timer steps physics, runs the controllers and renders the cameras when their
+sim-time period is due, holding ``_lock`` (the simulation and the goal slots) while it works.
+/reset_scene, the JTC topic and the action callbacks run on other executor threads and take the
+same lock; action execute callbacks then wait for the loop to report an outcome. Hence the
+MultiThreadedExecutor. Physics keeps priority: camera frames that fall due while the loop is
+behind are skipped, never queued.
 """
 from __future__ import annotations
 
@@ -29,6 +30,7 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallb
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
+from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -106,13 +108,17 @@ class SimNode(Node):
         self.arm_joints = tuple(self.env.spec.arm_joints)
         self.n_arm = len(self.arm_joints)
         self.env.reset(p.category, p.instance, p.seed, p.dof_fraction)
+        if p.camera_rate > 0:  # the first picture compiles shaders: not inside the control loop
+            started = time.monotonic()
+            self.env.observe()
+            self.get_logger().info(f"cameras warmed up in {time.monotonic() - started:.1f} s")
         self.arm = ArmController(self.arm_joints, self.env.robot.arm_positions(), p.goal_tolerance, p.goal_time_tolerance)
         self._arm_goal: PendingGoal | None = None
         self._gripper_goal: tuple[PendingGoal, GripperGoal] | None = None
-        self._lock = threading.Lock()  # guards the two goal slots between the loop and executors
+        self._lock = threading.Lock()  # the simulation, the controllers and the goal slots
 
-        self.loop_group = MutuallyExclusiveCallbackGroup()
-        action_group = ReentrantCallbackGroup()
+        loop_group, request_group, action_group = (MutuallyExclusiveCallbackGroup(), MutuallyExclusiveCallbackGroup(),
+                                                   ReentrantCallbackGroup())
         self.joint_state_pub = self.create_publisher(JointState, "/joint_states", 10)
         self.object_state_pub = self.create_publisher(JointState, "/object_state", 10)
         self.clock_pub = self.create_publisher(Clock, "/clock", 10)
@@ -133,14 +139,14 @@ class SimNode(Node):
             cancel_callback=lambda _: CancelResponse.ACCEPT, callback_group=action_group,
         )
         self.create_subscription(JointTrajectory, f"{arm_ns}/joint_trajectory", self._on_trajectory_topic, 10,
-                                 callback_group=self.loop_group)
-        self.create_service(ResetScene, "/reset_scene", self._on_reset_scene, callback_group=self.loop_group)
+                                 callback_group=request_group)
+        self.create_service(ResetScene, "/reset_scene", self._on_reset_scene, callback_group=request_group)
 
         self._next_state_time = 0.0
         self._next_feedback_time = 0.0
         self._next_camera_time = 0.0
         self._wall_last = time.monotonic()
-        self.create_timer(p.tick_period, self._tick, callback_group=self.loop_group)
+        self.create_timer(p.tick_period, self._tick, callback_group=loop_group)
 
     # -- static frames ------------------------------------------------------------------------
     def _publish_tf_static(self) -> None:
@@ -155,6 +161,11 @@ class SimNode(Node):
 
     # -- the loop -----------------------------------------------------------------------------
     def _tick(self) -> None:
+        with self._lock:
+            self._advance()
+
+    def _advance(self) -> None:
+        """Step physics to the target sim time of this tick; publish what fell due."""
         wall_now = time.monotonic()
         env = self.env
         if self.p.real_time_factor > 0:
@@ -203,37 +214,44 @@ class SimNode(Node):
 
     # -- arm: FollowJointTrajectory and the JTC topic --------------------------------------------
     def _monitor_goals(self) -> None:
+        """Feedback, cancels and outcomes of the running goals (the loop holds ``_lock``)."""
         now = self.env.time
-        names, q, qd = self.env.joint_state()
-        q_arm, q_grip, qd_grip = q[: self.n_arm], float(q[self.n_arm]), float(qd[self.n_arm])
-        with self._lock:
-            goal = self._arm_goal
-            if goal is not None and goal.handle is not None and goal.handle.is_cancel_requested:
-                self.arm.hold(q_arm)
-                self._arm_goal = None
-                goal.finish("canceled", FollowJointTrajectory.Result(error_code=0, error_string="canceled"))
-            elif self.arm.active is not None or goal is not None:
-                if goal is not None and goal.handle is not None and now >= self._next_feedback_time:
-                    self._next_feedback_time = now + 1.0 / self.p.action_monitor_rate
-                    goal.handle.publish_feedback(self._trajectory_feedback(now, q_arm, qd[: self.n_arm]))
-                outcome = self.arm.check(now, q_arm)
-                if outcome is not None:
-                    if outcome.error_code != 0:
-                        self.get_logger().warning(f"trajectory aborted: {outcome.message}")
-                    if goal is not None:
-                        self._arm_goal = None
-                        goal.finish("succeed" if outcome.error_code == 0 else "abort", _trajectory_result(outcome))
-            if self._gripper_goal is not None:
-                pending, tracker = self._gripper_goal
-                if pending.handle.is_cancel_requested:
-                    self.env.set_gripper(q_grip)
-                    self._gripper_goal = None
-                    pending.finish("canceled", self._gripper_result(GripperOutcome(False, False, False)))
-                else:
-                    outcome = tracker.update(now, q_grip, qd_grip)
-                    if outcome is not None:
-                        self._gripper_goal = None
-                        pending.finish("succeed" if outcome.succeeded else "abort", self._gripper_result(outcome))
+        _, q, qd = self.env.joint_state()
+        self._monitor_arm(now, q[: self.n_arm], qd[: self.n_arm])
+        self._monitor_gripper(now, float(q[self.n_arm]))
+
+    def _monitor_arm(self, now: float, q: np.ndarray, qd: np.ndarray) -> None:
+        goal = self._arm_goal
+        if goal is not None and goal.handle is not None and goal.handle.is_cancel_requested:
+            self.arm.hold(q)
+            self._arm_goal = None
+            goal.finish("canceled", FollowJointTrajectory.Result(error_code=0, error_string="canceled"))
+            return
+        if goal is not None and goal.handle is not None and now >= self._next_feedback_time:
+            self._next_feedback_time = now + 1.0 / self.p.action_monitor_rate
+            goal.handle.publish_feedback(self._trajectory_feedback(now, q, qd))
+        outcome = self.arm.check(now, q)
+        if outcome is None:
+            return
+        if outcome.error_code != 0:
+            self.get_logger().warning(f"trajectory aborted: {outcome.message}")
+        if goal is not None:
+            self._arm_goal = None
+            goal.finish("succeed" if outcome.error_code == 0 else "abort", _trajectory_result(outcome))
+
+    def _monitor_gripper(self, now: float, position: float) -> None:
+        if self._gripper_goal is None:
+            return
+        pending, tracker = self._gripper_goal
+        if pending.handle.is_cancel_requested:
+            self.env.set_gripper(position)
+            self._gripper_goal = None
+            pending.finish("canceled", self._gripper_result(GripperOutcome(False, False, False)))
+            return
+        outcome = tracker.update(now, position)
+        if outcome is not None:
+            self._gripper_goal = None
+            pending.finish("succeed" if outcome.succeeded else "abort", self._gripper_result(outcome))
 
     def _trajectory_feedback(self, now: float, q: np.ndarray, qd: np.ndarray) -> FollowJointTrajectory.Feedback:
         desired_q, desired_qd = self.arm.command(now)
@@ -306,41 +324,40 @@ class SimNode(Node):
     def _execute_gripper(self, handle: ServerGoalHandle) -> GripperCommand.Result:
         command = handle.request.command
         pending = PendingGoal(handle)
-        if not np.isfinite(command.position):
-            self.get_logger().error(f"rejected gripper goal: position {command.position} is not finite")
-            handle.abort()
-            return self._gripper_result(GripperOutcome(False, False, False))
         p = self.p
         with self._lock:
-            previous = self._gripper_goal
+            if not np.isfinite(command.position):
+                self.get_logger().error(f"rejected gripper goal: position {command.position} is not finite")
+                handle.abort()
+                return self._gripper_result(GripperOutcome(False, False, False))
+            if self._gripper_goal is not None:  # preempted, like the ros2_control controller
+                self._gripper_goal[0].finish("abort", self._gripper_result(GripperOutcome(False, False, False)))
             tracker = GripperGoal(command.position, self.env.time, p.gripper_goal_tolerance, p.gripper_stall_velocity,
                                   p.gripper_stall_timeout, p.gripper_allow_stalling)
             self.env.set_gripper(command.position)
             self._gripper_goal = (pending, tracker)
-        if previous is not None:
-            previous[0].finish("abort", self._gripper_result(GripperOutcome(False, False, False)))
         return pending.conclude()
 
     def _abort_goals(self, reason: str) -> list[PendingGoal]:
-        """Abort the running arm and gripper goals (scene reset, shutdown); returns them."""
-        with self._lock:
-            arm, gripper = self._arm_goal, self._gripper_goal
-            self._arm_goal, self._gripper_goal = None, None
+        """Abort the running arm and gripper goals (scene reset, shutdown); call with ``_lock``."""
         aborted = []
-        if arm is not None:
-            arm.finish("abort", FollowJointTrajectory.Result(error_code=INVALID_GOAL, error_string=f"aborted: {reason}"))
-            aborted.append(arm)
-        if gripper is not None:
-            gripper[0].finish("abort", self._gripper_result(GripperOutcome(False, False, False)))
-            aborted.append(gripper[0])
+        if self._arm_goal is not None:
+            self._arm_goal.finish("abort", FollowJointTrajectory.Result(error_code=INVALID_GOAL, error_string=f"aborted: {reason}"))
+            aborted.append(self._arm_goal)
+        if self._gripper_goal is not None:
+            self._gripper_goal[0].finish("abort", self._gripper_result(GripperOutcome(False, False, False)))
+            aborted.append(self._gripper_goal[0])
+        self._arm_goal, self._gripper_goal = None, None
         return aborted
 
-    def destroy_node(self) -> None:
-        # Executor threads wait in PendingGoal.conclude(): let them end their goals first.
-        for goal in self._abort_goals("sim_node shutting down"):
+    def release_goals(self) -> None:
+        """Abort every running goal and wait (briefly) until the executor threads waiting in
+        :meth:`PendingGoal.conclude` have ended them: call before shutting the executor down."""
+        with self._lock:
+            aborted = self._abort_goals("sim_node shutting down")
+        for goal in aborted:
             if goal.handle is not None:
                 goal.concluded.wait(timeout=1.0)
-        super().destroy_node()
 
     # -- scene --------------------------------------------------------------------------------
     def _on_reset_scene(self, request: ResetScene.Request, response: ResetScene.Response) -> ResetScene.Response:
@@ -359,7 +376,7 @@ class SimNode(Node):
         with self._lock:
             info = self.env.reset(request.category, request.instance, request.seed, request.dof_fraction)
             self.arm.hold(self.env.robot.arm_positions())
-        self._abort_goals("scene reset")
+            self._abort_goals("scene reset")
         self._next_camera_time = self.env.time  # views of the new scene as soon as possible
         self.get_logger().info(f"scene reset: {info.object_id} (seed {info.seed}, dof_fraction {request.dof_fraction:.2f})")
         response.success = True
@@ -378,7 +395,9 @@ def _trajectory_result(outcome: Outcome) -> FollowJointTrajectory.Result:
 
 def main(args: list[str] | None = None) -> None:
     apply_ros_defaults()
-    rclpy.init(args=args)
+    # Ctrl-C as a plain KeyboardInterrupt: the context stays valid until the running goals have
+    # been aborted, so their clients get a result instead of a vanished server.
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = SimNode()
     # Action goals wait in executor threads for the loop to finish them: allow several at once.
     executor = MultiThreadedExecutor(num_threads=8)
@@ -387,6 +406,8 @@ def main(args: list[str] | None = None) -> None:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        node.release_goals()
+        executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()
 

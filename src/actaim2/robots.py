@@ -150,7 +150,7 @@ def movable_gripper_urdf(spec: RobotSpec, cache_dir: Path | None = None) -> Path
     ``$XDG_CACHE_HOME/actaim2/urdf``) and written atomically, so concurrent processes share it.
     """
     root = ET.parse(spec.urdf_path).getroot()
-    for joint in root.iter("joint"):
+    for joint in root.findall("joint"):
         if joint.get("name") in spec.gripper_joints and joint.get("type") == "fixed":
             limit = joint.find("limit")
             if limit is None or float(limit.get("upper", 0.0)) <= float(limit.get("lower", 0.0)):
@@ -217,7 +217,7 @@ def load_robot_spec(name_or_yaml: str) -> RobotSpec:
 
 def _urdf_velocity_limits(urdf_path: Path, joints: list[str]) -> list[float]:
     limits = {}
-    for joint in ET.parse(urdf_path).getroot().iter("joint"):
+    for joint in ET.parse(urdf_path).getroot().findall("joint"):
         limit = joint.find("limit")
         if limit is not None and limit.get("velocity") is not None:
             limits[joint.get("name")] = float(limit.get("velocity"))

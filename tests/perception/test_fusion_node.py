@@ -195,6 +195,23 @@ def test_bad_input_is_logged_once_per_cause_and_never_published(ros_node, start_
     assert process.alive()
 
 
+def test_extrinsics_from_a_calibration_file(ros_node, start_node, azure_cloud, tmp_path):
+    calibration = tmp_path / "calibration.yaml"
+    calibration.write_text(yaml.safe_dump({"transforms": {"depth_camera_link": (T_WORLD_BASE @ T_BASE_DEPTH).tolist()}}))
+    params = dict(NODE_PARAMS, calibration_file=str(calibration), remove_robot_views=False)
+    process = start_node("actaim2_perception", "fusion_node", params)
+    cloud_pub = ros_node.create_publisher(PointCloud2, "/points2", qos_profile_sensor_data)
+    views = Inbox(ros_node, OrthoViews, "/ortho_views", QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
+    assert wait_for(lambda: cloud_pub.get_subscription_count() > 0, 30.0), process.output()
+    msg = to_msg(azure_cloud, None, "depth_camera_link")
+    assert publish_until(cloud_pub, lambda: msg, lambda: views.latest() is not None), process.output()
+    data = np.asarray(views.latest().data, dtype=np.float32).reshape(len(VIEWS), len(CHANNELS), 128, 128)
+    top = VIEWS.index("top")
+    face_point = BOX_CENTER + [0.0, 0.0, BOX_SIZE[2] / 2]
+    u, v, _ = (a[top, 0] for a in project(face_point, CENTER, HALF, 128))
+    np.testing.assert_allclose(data[top, [CHANNELS.index(c) for c in "xyz"], int(v), int(u)], face_point, atol=0.01)
+
+
 def test_calibration_publisher_latches_the_yaml_on_tf_static(ros_node, start_node, tmp_path):
     T = pose_to_matrix([1.2, -0.3, 0.9], [0.1, 0.2, 0.3, 0.927])
     calibration = tmp_path / "calibration.yaml"

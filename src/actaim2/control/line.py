@@ -10,8 +10,9 @@ A cubic spline q(u), u in [0, 1], through the solutions gives a C2 joint path.
 Timing is a 1-DoF Ruckig profile on u, time-optimal and jerk-limited. Its limits come from
 the joint limits through the path derivatives q'(u), q''(u), q'''(u):
 joint velocity q' u_dot, acceleration q'' u_dot^2 + q' u_ddot, jerk
-q''' u_dot^3 + 3 q'' u_dot u_ddot + q' u_dddot. Each term gets a share of the joint limit;
-the sampled result is checked against every limit and the u limits shrink until it passes.
+q''' u_dot^3 + 3 q'' u_dot u_ddot + q' u_dddot. Each term first gets a share of the joint
+limit; the u limits are then scaled to the largest factor whose sampled timing keeps every
+joint within its limits.
 """
 from __future__ import annotations
 
@@ -129,30 +130,35 @@ def _solve_line(solver, T_start, T_goal, anchor, anchor_at_end, step, angle_step
 class LineSegment:
     """The line path timed by a 1-DoF Ruckig profile on u within the joint limits."""
 
-    def __init__(self, path: LinePath, limits: Limits, entry_speed_fraction: float = 0.0, shrink: float = 0.8, max_tries: int = 12):
+    def __init__(self, path: LinePath, limits: Limits, entry_speed_fraction: float = 0.0, margin: float = 0.99):
         """``entry_speed_fraction`` of the top speed along the line is the speed it starts with
-        (0: from rest; > 0 when a segment before it arrives moving, see :meth:`entry_state`)."""
+        (0: from rest; > 0 when a segment before it arrives moving, see :meth:`entry_state`).
+
+        The shares of :meth:`_u_limits` are conservative (the peaks of the path derivatives
+        rarely coincide), so the u limits are scaled by the largest common factor whose timing
+        still passes the sampled check at ``margin`` of every joint limit (a short bisection)."""
         self.path = path
         self.limits = limits
+        self._margin = margin
         u = np.linspace(0.0, 1.0, 8 * (len(path.u) - 1) + 1)
         self._d1 = np.abs(path.spline(u, 1)).max(axis=0) + 1e-12
         self._d2 = np.abs(path.spline(u, 2)).max(axis=0)
         self._d3 = np.abs(path.spline(u, 3)).max(axis=0)
-        self.max_speed, max_acc, max_jerk = self._u_limits()
-        speed0 = entry_speed_fraction * self.max_speed
-        for _ in range(max_tries):
-            speed0 = min(speed0, self.max_speed)
-            self._profile = _profile_1d(speed0, self.max_speed, max_acc, max_jerk)
-            self.duration = float(self._profile.duration)
-            extrema = self._profile.position_extrema[0]
-            if extrema.max > 1.0 + 1e-9:  # entering too fast to stop at the end: enter slower
-                speed0 *= 0.5
-                continue
-            if self._within_limits():
-                self.start_speed = speed0
-                return
-            self.max_speed, max_acc, max_jerk = shrink * self.max_speed, shrink * max_acc, shrink * max_jerk
-        raise TrajectoryError("no timing of the straight line stays within the joint limits")
+        base = self._u_limits()
+        best, lo, hi, scale = None, 0.0, np.inf, 1.0
+        for _ in range(10):
+            timing = self._timing(base, scale, entry_speed_fraction)
+            if timing is not None:
+                best, lo = timing, scale
+            else:
+                hi = scale
+            if hi / max(lo, 1e-12) < 1.1 or scale > 16.0:
+                break
+            scale = 2.0 * scale if np.isinf(hi) else (0.5 * scale if lo == 0.0 else 0.5 * (lo + hi))
+        if best is None:
+            raise TrajectoryError("no timing of the straight line stays within the joint limits")
+        self._profile, self.start_speed, self.max_speed = best
+        self.duration = float(self._profile.duration)
 
     def _u_limits(self) -> tuple[float, float, float]:
         """u_dot, u_ddot, u_dddot bounds giving each term of the joint derivatives its share."""
@@ -163,19 +169,33 @@ class LineSegment:
             j = float(np.min(lim.jerk / 3.0 / d1))
         return float(v), float(a), j
 
-    def _within_limits(self, checks: int = 400) -> bool:
-        t = np.linspace(0.0, self.duration, checks)
-        h = 1e-5
-        states = [self.at(ti) for ti in t]
-        ahead = [self.at(min(ti + h, self.duration)) for ti in t]
-        lim, tol = self.limits, 1.0 + 1e-6
-        for (s, s2, ti) in zip(states, ahead, t):
-            dt = min(ti + h, self.duration) - ti
-            jerk = (s2.acceleration - s.acceleration) / dt if dt > 0 else 0.0
-            if (np.any(np.abs(s.velocity) > lim.velocity * tol) or np.any(np.abs(s.acceleration) > lim.acceleration * tol)
-                    or np.any(np.abs(jerk) > lim.jerk * tol)):
-                return False
-        return True
+    def _timing(self, base: tuple[float, float, float], scale: float, entry_speed_fraction: float):
+        """(profile, entry speed, top speed) with the u limits ``base * scale``, or None when
+        the joints would exceed a limit. Entering too fast to stop by the end halves the entry."""
+        v, a, j = (scale * x for x in base)
+        speed0 = entry_speed_fraction * v
+        for _ in range(8):
+            profile = _profile_1d(speed0, v, a, j)
+            if profile.position_extrema[0].max <= 1.0 + 1e-9:
+                return (profile, speed0, v) if self._within_limits(profile) else None
+            speed0 *= 0.5
+        return None
+
+    def _within_limits(self, profile: Trajectory, checks: int = 1000) -> bool:
+        """Joint velocity, acceleration and jerk of the timed path, sampled, within the limits."""
+        h = 1e-6
+        t = np.linspace(0.0, profile.duration - h, checks)
+        now = np.array([[x[0] for x in profile.at_time(ti)] for ti in t])
+        ahead = np.array([profile.at_time(ti + h)[2][0] for ti in t])
+        u, ud, udd = np.clip(now[:, 0], 0.0, 1.0), now[:, 1:2], now[:, 2:3]
+        uddd = (ahead[:, None] - udd) / h
+        d1, d2, d3 = self.path.spline(u, 1), self.path.spline(u, 2), self.path.spline(u, 3)
+        lim, m = self.limits, self._margin
+        return bool(
+            np.all(np.abs(d1 * ud) <= m * lim.velocity)
+            and np.all(np.abs(d2 * ud**2 + d1 * udd) <= m * lim.acceleration)
+            and np.all(np.abs(d3 * ud**3 + 3.0 * d2 * ud * udd + d1 * uddd) <= m * lim.jerk)
+        )
 
     def at(self, t: float) -> State:
         u, u_dot, u_ddot = self._profile.at_time(min(max(t, 0.0), self.duration))

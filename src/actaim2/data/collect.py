@@ -24,17 +24,27 @@ reproducible from its seed whatever the worker count or interruptions.
 """
 from __future__ import annotations
 
+import itertools
 import json
 import multiprocessing as mp
 import os
 import time
 import zlib
+from collections import deque
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 from tqdm import tqdm
 
+from actaim2.control.collision import CollisionChecker
+from actaim2.control.executor import KeyposeRunner
+from actaim2.control.ik import IKOptions, IKSolver
+from actaim2.control.model import RobotModel
+from actaim2.control.planner import KeyposePlanner
+from actaim2.control.sim_executor import SimEnvExecutor
 from actaim2.data.actions import ActionSequence, Sampler
 from actaim2.data.gmm_sampler import GMMAdaptiveSampler, GMMConfig
 from actaim2.data.grasp_sampler import HeuristicGraspSampler
@@ -45,9 +55,12 @@ from actaim2.data.splits import TRAIN, check_no_leak, split_of
 from actaim2.data.stats import RUNS_FILE
 from actaim2.data.storage import DatasetReader, DatasetWriter, EncodedTrajectory, encode_trajectory, trajectory_id
 from actaim2.data.trajectory import CameraImage, ObjectState, Observation, Trajectory
+from actaim2.sim.env import WORKSPACE_CENTER, SimEnv
 
 EXPLORE_SAMPLERS = ("random", "grasp")
 SAMPLER_CODES = {"random": 1, "grasp": 2, "gmm": 3}
+PRECHECK_IK_RESTARTS = 8
+IN_FLIGHT_PER_WORKER = 3
 SKIPPED_FILE = "skipped.jsonl"  # trajectories given up on (no feasible sample): not retried on resume
 
 
@@ -99,20 +112,17 @@ class TrajectoryCollector:
     """Runs tasks in one process: a simulator with the ring of cameras, the keypose planner, the samplers."""
 
     def __init__(self, config: CollectConfig):
-        from actaim2.control.collision import CollisionChecker
-        from actaim2.control.ik import IKSolver
-        from actaim2.control.model import RobotModel
-        from actaim2.control.planner import KeyposePlanner
-        from actaim2.sim.env import WORKSPACE_CENTER, SimEnv
-
         self.config = config
         self.env = SimEnv(config.robot, cameras="ring5", render_path=config.render_path)
         robot = RobotModel(self.env.spec)
         checker = CollisionChecker(robot)
         self.planner = KeyposePlanner(robot, checker, IKSolver(robot, checker))
+        # Screening samples needs no exhaustive search: few restarts, the planner retries properly.
+        self.screen_ik = IKSolver(robot, checker, IKOptions(restarts=PRECHECK_IK_RESTARTS))
         self.cloud_config = CloudConfig(center=tuple(float(v) for v in WORKSPACE_CENTER))
         sampling = SamplingConfig()
         self.samplers: dict[str, Sampler] = {"random": RandomSampler(sampling), "grasp": HeuristicGraspSampler(self.cloud_config, sampling)}
+        self.executor = SimEnvExecutor(self.env)
 
     def run(self, task: Task) -> EncodedTrajectory | dict:
         """The encoded trajectory, or a {id, reason} record when no attempt could be executed."""
@@ -131,9 +141,6 @@ class TrajectoryCollector:
         return {"id": task.tid, "sampler": task.sampler, "category": task.category, "instance": task.instance, "reasons": reasons}
 
     def _attempt(self, task: Task, sampler: Sampler, rng: np.random.Generator) -> Trajectory | str:
-        from actaim2.control.executor import KeyposeRunner
-        from actaim2.control.sim_executor import SimEnvExecutor
-
         env = self.env
         info = env.reset(task.category, task.instance, seed=int(rng.integers(2**31)), dof_fraction=self.config.dof_fraction)
         observations = {"init": from_sim(env.observe(with_robot=False))}
@@ -150,7 +157,7 @@ class TrajectoryCollector:
         if action is None:
             return "no sampled action passed the IK check"
         self.planner.set_cloud(cloud.points)
-        runner = KeyposeRunner(self.planner, SimEnvExecutor(env), rng)
+        runner = KeyposeRunner(self.planner, self.executor, rng)
         keyposes = action.keyposes()
         outcomes = []
         for i, keypose in enumerate(keyposes):
@@ -173,10 +180,10 @@ class TrajectoryCollector:
     def _reachable(self, action: ActionSequence, rng: np.random.Generator) -> bool:
         """IK (self-collision and floor checked) exists for p0, p1 and p2, each seeded from the last."""
         seed = self.env.spec.home
-        for keypose in action.keyposes()[:2] + action.keyposes()[3:]:
+        for position in (action.p0, action.p1, action.p2):
             T = np.eye(4)
-            T[:3, :3], T[:3, 3] = action.R0, keypose.position
-            result = self.planner.ik.solve(T, seed, rng=rng, use_cloud=False)
+            T[:3, :3], T[:3, 3] = action.R0, position
+            result = self.screen_ik.solve(T, seed, rng=rng, use_cloud=False)
             if not result.success:
                 return False
             seed = result.angles
@@ -199,7 +206,38 @@ def _init_worker(config: CollectConfig) -> None:
 
 
 def _run_task(task: Task) -> EncodedTrajectory | dict:
-    return _COLLECTOR.run(task)
+    try:
+        return _COLLECTOR.run(task)
+    except Exception as exc:  # one broken trajectory (a simulator error) must not end a long collection
+        return {"id": task.tid, "sampler": task.sampler, "category": task.category, "instance": task.instance,
+                "reasons": [f"error: {exc!r}"]}
+
+
+def _results(config: CollectConfig, todo: list[Task]) -> Iterator[EncodedTrajectory | dict]:
+    """Results in task order, from this process or from worker processes.
+
+    At most a few tasks per worker are in flight, so memory stays flat however many tasks a
+    stage has; a worker that dies (e.g. a crashed renderer) stops the run with BrokenProcessPool
+    instead of hanging it, and the next run resumes.
+    """
+    if config.workers == 0:
+        if _COLLECTOR is None or _COLLECTOR.config != config:
+            _init_worker(config)
+        yield from map(_run_task, todo)
+        return
+    os.environ.setdefault("OMP_NUM_THREADS", "1")  # inherited by the workers (Open3D, PyTorch)
+    pool = ProcessPoolExecutor(config.workers, mp_context=mp.get_context("spawn"), initializer=_init_worker, initargs=(config,))
+    tasks = iter(todo)
+    try:
+        pending = deque(pool.submit(_run_task, t) for t in itertools.islice(tasks, IN_FLIGHT_PER_WORKER * config.workers))
+        while pending:
+            result = pending.popleft().result()
+            following = next(tasks, None)
+            if following is not None:
+                pending.append(pool.submit(_run_task, following))
+            yield result
+    finally:
+        pool.shutdown(wait=False, cancel_futures=True)
 
 
 def _skipped_ids(out: Path) -> set[str]:
@@ -208,10 +246,14 @@ def _skipped_ids(out: Path) -> set[str]:
 
 
 def run_tasks(config: CollectConfig, writer: DatasetWriter, tasks: list[Task], stage: str) -> dict:
-    """Execute tasks not yet stored or skipped; append results as they come (in task order)."""
+    """Execute tasks not yet stored or skipped; append results as they come (in task order).
+
+    A task whose every attempt found no executable action is logged in skipped.jsonl and not
+    retried; one that raised (counted as an error) is retried by the next run.
+    """
     done = writer.ids | _skipped_ids(config.out)
     todo = [t for t in tasks if t.tid not in done]
-    summary = {"stage": stage, "workers": config.workers, "trajectories": 0, "skipped": 0, "seconds": 0.0,
+    summary = {"stage": stage, "workers": config.workers, "trajectories": 0, "skipped": 0, "errors": 0, "seconds": 0.0,
                "already_done": len(tasks) - len(todo)}
     if not todo:
         return summary
@@ -219,30 +261,23 @@ def run_tasks(config: CollectConfig, writer: DatasetWriter, tasks: list[Task], s
     bar = tqdm(total=len(todo), desc=stage, unit="traj", disable=not config.show_progress)
     successes = 0
     with open(config.out / SKIPPED_FILE, "a") as skipped_log:
-        if config.workers == 0:
-            _init_worker(config)
-            results = map(_run_task, todo)
-            pool = None
-        else:
-            os.environ.setdefault("OMP_NUM_THREADS", "1")  # inherited by the workers (Open3D)
-            pool = mp.get_context("spawn").Pool(config.workers, initializer=_init_worker, initargs=(config,))
-            results = pool.imap(_run_task, todo)
         try:
-            for result in results:
+            for result in _results(config, todo):
                 if isinstance(result, EncodedTrajectory):
                     writer.append(result)
                     summary["trajectories"] += 1
                     successes += bool(result.entry["gt_success"])
+                elif result["reasons"][-1].startswith("error:"):  # not logged as skipped: a resumed run retries it
+                    summary["errors"] += 1
+                    bar.write(f"{result['id']}: {result['reasons'][-1]}")
                 else:
                     skipped_log.write(json.dumps(result) + "\n")
                     skipped_log.flush()
                     summary["skipped"] += 1
                 bar.update(1)
-                bar.set_postfix(stored=summary["trajectories"], skipped=summary["skipped"],
+                bar.set_postfix(stored=summary["trajectories"], skipped=summary["skipped"], errors=summary["errors"],
                                 gt_success=f"{successes / max(summary['trajectories'], 1):.0%}")
         finally:
-            if pool is not None:
-                pool.terminate()
             bar.close()
     summary["seconds"] = round(time.perf_counter() - start, 2)
     with open(config.out / RUNS_FILE, "a") as f:

@@ -93,10 +93,15 @@ def main(args: argparse.Namespace) -> int:
         workers=args.workers, seed=args.seed, robot=args.robot, render_path=args.render_path, rounds=args.rounds,
         encoder=encoder, encoder_steps=args.encoder_steps, show_progress=not args.no_progress,
     )
-    report = collect(config)
+    try:
+        report = collect(config)
+    except ValueError as exc:  # e.g. no training-split trajectory to calibrate the label on
+        print(f"actaim2 collect: {exc}", file=sys.stderr)
+        return 1
     for stage in report["stages"]:
         rate = stage["trajectories"] / stage["seconds"] if stage["seconds"] else float("nan")
-        print(f"{stage['stage']}: {stage['trajectories']} stored, {stage['skipped']} skipped, {stage['already_done']} already done, "
+        print(f"{stage['stage']}: {stage['trajectories']} stored, {stage['skipped']} skipped, {stage['errors']} errors, "
+              f"{stage['already_done']} already done, "
               f"{stage['seconds']:.0f} s ({rate:.2f} trajectories/s)")
     if "labelling" in report:
         held = report["labelling"].get("other_splits")

@@ -46,7 +46,7 @@ def train_autoencoder(
         loss.backward()
         opt.step()
         sched.step()
-        losses.append(float(loss))
+        losses.append(loss.item())
         if progress is not None:
             progress(step, losses[-1])
     ae.eval()

@@ -36,7 +36,7 @@ class GraspProposer(Protocol):
 
 @dataclass(frozen=True)
 class AntipodalConfig:
-    anchors: int = 40  # surface points hands are placed around, per segment
+    anchors: int = 16  # surface points hands are placed around, per segment
     approach_tilts_deg: tuple[float, ...] = (-45.0, -22.5, 0.0, 22.5, 45.0)  # about the part's long axis
     depth: float = 0.015  # m the fingertips go past the anchor surface
     friction_deg: float = 30.0  # contact normals within this of the closing axis count as antipodal
@@ -62,7 +62,7 @@ class AntipodalGraspProposer:
         # Only points a hand placed on this segment can touch matter for collisions and contacts.
         seg_pts = cloud.points[segment]
         centre = seg_pts.mean(0)
-        reach = np.linalg.norm(seg_pts - centre, axis=1).max() + np.linalg.norm(cfg.gripper.palm_extent())
+        reach = np.linalg.norm(seg_pts - centre, axis=1).max() + np.linalg.norm(cfg.gripper.hand_extent())
         near = np.flatnonzero(np.linalg.norm(cloud.points - centre, axis=1) <= reach)
         pts = cloud.points[near]
         normals = estimate_normals(pts, cfg.normal_radius)

@@ -33,8 +33,8 @@ class GripperGeometry:
             "palm": (np.array([-px, -self.palm_width / 2, z_base - self.palm_depth]), np.array([px, self.palm_width / 2, z_base])),
         }
 
-    def palm_extent(self) -> np.ndarray:
-        """Half-size of the box around the tcp that holds the whole open hand."""
+    def hand_extent(self) -> np.ndarray:
+        """Half-widths (x, y) and depth behind the tcp (z) of the box holding the whole open hand."""
         return np.array([self.palm_thickness / 2, self.palm_width / 2, self.finger_length + self.palm_depth])
 
     def closing_region(self) -> tuple[np.ndarray, np.ndarray]:
@@ -60,7 +60,19 @@ def collides(gripper: GripperGeometry, points: np.ndarray, T_world_tcp: np.ndarr
     The tolerance absorbs single stray points (depth noise, voxel averaging at edges).
     """
     local = points_in_tcp(points, T_world_tcp)
-    return sum(count_inside(local, box) for box in gripper.boxes().values()) > tolerance
+    half = gripper.hand_extent()
+    near = local[(np.abs(local[:, 0]) <= half[0]) & (np.abs(local[:, 1]) <= half[1]) & (local[:, 2] >= -half[2]) & (local[:, 2] <= 0.0)]
+    if len(near) <= tolerance:
+        return False
+    return sum(count_inside(near, box) for box in gripper.boxes().values()) > tolerance
+
+
+def points_near(points: np.ndarray, segment_start: np.ndarray, segment_end: np.ndarray, radius: float) -> np.ndarray:
+    """The points within ``radius`` of a line segment (the volume a moving hand can touch)."""
+    a, b = np.asarray(segment_start, float), np.asarray(segment_end, float)
+    ab = b - a
+    t = np.clip((points - a) @ ab / max(ab @ ab, 1e-12), 0.0, 1.0)
+    return points[np.linalg.norm(points - (a + t[:, None] * ab), axis=1) <= radius]
 
 
 def tcp_pose(position: np.ndarray, approach: np.ndarray, closing: np.ndarray) -> np.ndarray:

@@ -14,7 +14,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from actaim2.data.actions import ActionSequence
-from actaim2.data.gripper import GripperGeometry, collides
+from actaim2.data.gripper import GripperGeometry, collides, points_near
 from actaim2.data.object_cloud import ObjectCloud
 
 
@@ -41,6 +41,8 @@ class SamplingConfig:
 
 def approach_is_free(p1: np.ndarray, R0: np.ndarray, points: np.ndarray, config: SamplingConfig) -> bool:
     """The open hand fits at p1 and at evenly spaced poses back to p0 (straight approach)."""
+    p0 = p1 - config.start_distance * R0[:, 2]
+    points = points_near(points, p0, p1, float(np.linalg.norm(config.gripper.hand_extent())))
     T = np.eye(4)
     T[:3, :3] = R0
     for s in np.linspace(0.0, config.start_distance, config.approach_checks + 1):

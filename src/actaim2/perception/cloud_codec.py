@@ -148,9 +148,16 @@ def decode(
         view = np.ndarray((height, width), dtype=dtype, buffer=buffer, offset=field.offset, strides=(row_step, point_step))
         return view.reshape(-1)
 
-    xyz = np.empty((height * width, 3), dtype=np.float32)
-    for i, name in enumerate("xyz"):
-        xyz[:, i] = column(by_name[name])
+    x, y, z = (by_name[n] for n in "xyz")
+    if all(f.datatype == FLOAT32 for f in (x, y, z)) and (y.offset, z.offset) == (x.offset + 4, x.offset + 8):
+        # The common layout (every driver here): one strided copy of the three floats per point.
+        view = np.ndarray((height, width, 3), dtype=np.dtype(endian + "f4"), buffer=buffer, offset=x.offset,
+                          strides=(row_step, point_step, 4))
+        xyz = view.astype(np.float32).reshape(-1, 3)
+    else:
+        xyz = np.empty((height * width, 3), dtype=np.float32)
+        for i, field in enumerate((x, y, z)):
+            xyz[:, i] = column(field)
     return DecodedCloud(xyz, _decode_colour(by_name, column), height, width)
 
 

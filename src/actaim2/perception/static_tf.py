@@ -4,9 +4,11 @@
 arrive as chains such as ``world -> camera_base -> depth_camera_link`` from different
 publishers, so lookups search the undirected frame graph and compose (inverting edges walked
 backwards). Static edges never expire; a re-published edge replaces the previous one, as in tf2.
+The buffer is thread-safe: a ROS callback may add edges while a worker thread looks them up.
 """
 from __future__ import annotations
 
+import threading
 from collections import deque
 
 import numpy as np
@@ -24,6 +26,7 @@ class StaticTransformBuffer:
     def __init__(self) -> None:
         self._parent: dict[str, tuple[str, np.ndarray]] = {}
         self._cache: dict[tuple[str, str], np.ndarray] = {}
+        self._lock = threading.Lock()
 
     def set_transform(self, parent: str, child: str, T_parent_child: np.ndarray) -> None:
         """Add or replace the edge parent -> child."""
@@ -32,10 +35,15 @@ class StaticTransformBuffer:
             raise ValueError(f"transform {parent} -> {child} must be a finite 4x4 matrix")
         if parent == child:
             raise ValueError(f"transform from '{parent}' to itself")
-        self._parent[child] = (parent, T)
-        self._cache.clear()
+        with self._lock:
+            self._parent[child] = (parent, T)
+            self._cache.clear()
 
     def frames(self) -> set[str]:
+        with self._lock:
+            return self._frame_names()
+
+    def _frame_names(self) -> set[str]:
         return set(self._parent) | {p for p, _ in self._parent.values()}
 
     def can_transform(self, target: str, source: str) -> bool:
@@ -50,9 +58,10 @@ class StaticTransformBuffer:
         if target == source:
             return np.eye(4)
         key = (target, source)
-        if key not in self._cache:
-            self._cache[key] = self._search(target, source)
-        return self._cache[key]
+        with self._lock:
+            if key not in self._cache:
+                self._cache[key] = self._search(target, source)
+            return self._cache[key]
 
     def _search(self, target: str, source: str) -> np.ndarray:
         neighbours: dict[str, list[tuple[str, np.ndarray]]] = {}
@@ -71,5 +80,5 @@ class StaticTransformBuffer:
                     if other == target:
                         return reached[other]
                     queue.append(other)
-        known = ", ".join(sorted(self.frames())) or "none"
+        known = ", ".join(sorted(self._frame_names())) or "none"
         raise UnknownFrameError(f"no static transform chain from '{source}' to '{target}' (known frames: {known})")

@@ -166,10 +166,12 @@ class SimEnv:
         """Finger joint target (``spec.gripper_open`` .. ``spec.gripper_closed``)."""
         self.robot.set_gripper_target(position)
 
-    def grip(self, closed: bool, timeout: float = 1.5) -> float:
-        """Close (or open) the gripper and step until the fingers stop, on the handle or at their
-        target; returns the finger position (a closed gripper stalled on a handle stops early)."""
-        self.set_gripper(self.spec.gripper_closed if closed else self.spec.gripper_open)
+    def grip(self, closed: bool, opening: float = 1.0, timeout: float = 1.5) -> float:
+        """Close (or open, to ``opening`` of the full stroke) the gripper and step until the
+        fingers stop, on the handle or at their target; returns the finger position (a closed
+        gripper stalled on a handle stops early)."""
+        spec = self.spec
+        self.set_gripper(spec.gripper_closed if closed else spec.gripper_closed + opening * (spec.gripper_open - spec.gripper_closed))
         still = 0
         for _ in range(int(timeout / self.timestep)):
             self.step()

@@ -31,11 +31,13 @@ from actaim2.control.model import RobotModel
 from actaim2.sim.env import SimEnv
 from actaim2.sim.objects.model import Handle
 from actaim2.sim.objects.surface import surface_points
-from actaim2.sim.success import moved_fraction
+from actaim2.sim.success import SUCCESS_FRACTION, moved_fraction
 
 INIT, REACH, GRASP, MANIPULATE = 0, 1, 2, 3  # Keypose.phase values (DESIGN.md)
 FLIP = np.diag([-1.0, -1.0, 1.0, 1.0])  # the same grasp with the fingers swapped (turned about the approach axis)
 HANDLE_CLEARANCE = 0.08  # m: obstacle points this close to the handle are ignored (the hand goes there)
+MIN_PROGRESS = 0.36  # fraction of the range a cut-short manipulation must still cover (success: 0.3)
+TILTED_OPENING = 0.6  # fraction of the full gripper stroke
 FREE_MOVE_CLEARANCE = 0.1  # m: the joint-space move ends this much farther back than the pre-pose
 # Grasp variants per handle kind, in order: the approach turned about the TCP x axis (the
 # bar's axis: free for a round grip) and about its y axis (the closing direction: the pinch
@@ -46,7 +48,7 @@ _ROUND = [(a, 0) for a in (0, 25, 45, -25, -45)] + [(0, 25), (0, -25)]
 TILTS = {"bar": _ROUND, "knob": _ROUND,
          "lever": _ROUND + [(0, 40), (0, -40)],
          "spout": [(0, 0), (25, 0), (-25, 0), (0, 25), (0, -25), (0, 40), (0, -40)],
-         "edge": [(0, 0), (20, 0), (30, 0), (-20, 0)],
+         "edge": [(0, 0), (20, 0), (30, 0), (-20, 0), (0, 25), (0, -25), (0, 45), (0, -45)],
          "toggle": [(0, 0), (20, 0), (-20, 0), (0, 20), (0, -20)],
          "slider": [(0, 0), (20, 0), (-20, 0), (0, 20), (0, -20)]}
 
@@ -97,42 +99,60 @@ class ScriptedExpert:
         self._vmax = env.spec.max_velocity
 
     def run(self, task: ExpertTask) -> ExpertResult:
-        """Plan, execute, release and back off; the result is measured after the release."""
-        env, obj = self.env, self.env.object
+        """Plan, reach, manipulate, release and back off; the result is measured at the end."""
+        obj = self.env.object
+        q0 = obj.qpos()
+        try:
+            plan = self.plan(task)
+        except PlanningError as exc:
+            return ExpertResult(task, False, 0.0, "none", f"planning failed: {exc}")
+        self.reach(plan)
+        self.manipulate(plan)
+        self.release(plan)
+        moved = float(moved_fraction(q0, obj.qpos(), obj.lower, obj.upper)[plan.dof])
+        success = moved * task.direction > SUCCESS_FRACTION
+        return ExpertResult(task, success, moved, plan.strategy, "ok" if success else f"moved {moved:+.2f} of the range", plan.keyposes)
+
+    def plan(self, task: ExpertTask) -> "ExpertPlan":
+        """Choose the strategy and plan every motion from the current state (raises PlanningError)."""
+        obj = self.env.object
         self._rng = np.random.default_rng(self.seed)
         i = obj.dof_index(task.joint)
         joint = obj.joints[i]
-        try:
-            handle = self._handle(task.joint)
-        except PlanningError as exc:
-            return ExpertResult(task, False, 0.0, "none", str(exc))
+        handle = self._handle(task.joint)
         # a drawer is closed by pushing it: its closing motion runs along the approach axis
         approach_world = obj.link(handle.link).entity_pose.to_transformation_matrix()[:3, :3] @ np.asarray(handle.approach, float)
-        opening = joint.get_global_pose().to_transformation_matrix()[:3, 0]
-        push = joint.type == "prismatic" and task.direction < 0 and float(-opening @ approach_world) > 0.8
-        strategy = "push" if push else "grasp"
-        q0 = obj.qpos()
+        opening_axis = joint.get_global_pose().to_transformation_matrix()[:3, 0]
+        push = joint.type == "prismatic" and task.direction < 0 and float(-opening_axis @ approach_world) > 0.8
+        q_now = float(obj.qpos()[i])
         span = obj.upper[i] - obj.lower[i]
         goal = obj.lower[i] + (self.target_fraction if task.direction > 0 else 1.0 - self.target_fraction) * span
         if push:
             goal = obj.lower[i] - 0.005  # the panel is pushed just past its stop
-        try:
-            approach, manipulation, retreat, keyposes = self._plan(handle, joint, q0[i], goal, push)
-        except PlanningError as exc:
-            return ExpertResult(task, False, 0.0, strategy, f"planning failed: {exc}")
-        env.grip(closed=False)
-        self._move_free(approach.joints[0])
-        self._execute(approach, self.speed)
-        env.grip(closed=True)
-        if not push:  # closing the fingers may have nudged the part: follow it from where it is now
-            manipulation = self._regrasped(handle, joint, i, goal, manipulation)
-        self._execute(manipulation, self.manipulation_speed)
-        if not push:  # a pushing hand backs off closed: opening fingers could hook the handle
-            env.grip(closed=False)
-        self._execute(retreat, self.speed)
-        moved = float(moved_fraction(q0, obj.qpos(), obj.lower, obj.upper)[i])
-        success = moved * task.direction > 0.3
-        return ExpertResult(task, success, moved, strategy, "ok" if success else f"moved {moved:+.2f} of the range", keyposes)
+        approach, manipulation, retreat, keyposes, opening = self._plan(handle, joint, q_now, goal, push)
+        return ExpertPlan(task, "push" if push else "grasp", handle, i, float(goal), opening, approach, manipulation, retreat, keyposes)
+
+    def reach(self, plan: "ExpertPlan") -> None:
+        """INIT, REACH and GRASP: open, move to the approach start, go straight in, close."""
+        self.env.grip(closed=False, opening=plan.opening)
+        self._move_free(plan.approach.joints[0])
+        self.execute_motion(plan.approach, self.speed)
+        self.env.grip(closed=True)
+
+    def manipulate(self, plan: "ExpertPlan") -> None:
+        """MANIPULATE: move the part, starting from where the grasp left it."""
+        motion = plan.manipulation
+        if plan.strategy == "grasp":  # closing the fingers may have nudged the part
+            joint = self.env.object.joints[plan.dof]
+            motion = self._regrasped(joint, plan.dof, plan.goal, motion)
+        self.execute_motion(motion, self.manipulation_speed)
+
+    def release(self, plan: "ExpertPlan") -> None:
+        """Let go and back off along the approach axis (a pushing hand backs off closed: opening
+        fingers could hook the handle)."""
+        if plan.strategy == "grasp":
+            self.env.grip(closed=False, opening=plan.opening)
+        self.execute_motion(plan.retreat, self.speed)
 
     # -- planning -----------------------------------------------------------------------------
     def _handle(self, joint_name: str) -> Handle:
@@ -159,6 +179,7 @@ class ScriptedExpert:
             # pushing a handle, fingers slip over it and hook it on the way back
             side = handle.span / 2 + 0.025
             offsets = [(side, 0.0), (-side, 0.0), (0.0, 0.03), (0.0, -0.03)]
+            required = None
             travel = self.push_standoff + (q_now - q_goal)
             moves = [_part_motion("prismatic", axis, origin, -d) for d in np.linspace(0.0, travel, int(np.ceil(travel / 0.01)) + 1)]
         else:
@@ -166,6 +187,9 @@ class ScriptedExpert:
             step = 0.01 if joint.type == "prismatic" else np.deg2rad(3.0)
             qs = np.linspace(q_now, q_goal, max(2, int(np.ceil(abs(q_goal - q_now) / step)) + 1))
             moves = [_part_motion(joint.type, axis, origin, q - q_now) for q in qs]
+            # where the arm cannot follow the whole way, going this far still moves the part enough
+            span = float(joint.limit[0][1] - joint.limit[0][0])
+            required = int(np.argmax(np.abs(qs - q_now) >= MIN_PROGRESS * span)) + 1 if np.abs(qs[-1] - q_now) >= MIN_PROGRESS * span else None
         errors = []
         for rx, ry in np.deg2rad(TILTS.get(handle.kind, [(0, 0)])):
             for flip in (np.eye(4), FLIP):
@@ -175,7 +199,6 @@ class ScriptedExpert:
                         grasp = grasp @ _translate(offset[0], offset[1], handle.depth - self.push_standoff)
                     path = [move @ grasp for move in moves]
                     pre = grasp @ _translate(0, 0, -self.approach_distance)
-                    back = [path[-1] @ _translate(0, 0, -d) for d in np.linspace(0.0, self.approach_distance, 5)]
                     # start the straight approach farther back when the arm can get there
                     for clearance in (FREE_MOVE_CLEARANCE, 0.0):
                         start = grasp @ _translate(0, 0, -self.approach_distance - clearance)
@@ -188,16 +211,20 @@ class ScriptedExpert:
                             continue
                         try:
                             approach = self._follow(_line(start, grasp), q_start)
-                            manipulation = self._follow(path, approach.joints[-1])
+                            manipulation = self._follow(path, approach.joints[-1], required)
+                            back = [manipulation.poses[-1] @ _translate(0, 0, -d) for d in np.linspace(0.0, self.approach_distance, 5)]
                             retreat = self._follow(back, manipulation.joints[-1])
                         except PlanningError as exc:
                             errors.append(str(exc))
                             continue
-                        keyposes = [(INIT, pre, False), (REACH, grasp, False), (GRASP, grasp, True), (MANIPULATE, path[-1], True)]
-                        return approach, manipulation, retreat, keyposes
+                        keyposes = [(INIT, pre, False), (REACH, grasp, False), (GRASP, grasp, True),
+                                    (MANIPULATE, manipulation.poses[-1], True)]
+                        # a steeply tilted hand opens less: its lower finger would hit the panel
+                        opening = 1.0 if max(abs(rx), abs(ry)) < np.deg2rad(30) else TILTED_OPENING
+                        return approach, manipulation, retreat, keyposes, opening
         raise PlanningError(f"{len(errors)} variants failed, e.g. {errors[0] if errors else 'no IK solution for any start pose'}")
 
-    def _regrasped(self, handle: Handle, joint, i: int, q_goal: float, planned: "Motion") -> "Motion":
+    def _regrasped(self, joint, i: int, q_goal: float, planned: "Motion") -> "Motion":
         """The manipulation re-planned from the part's and hand's actual poses after the grasp
         (the planned one if IK cannot follow the new path)."""
         obj = self.env.object
@@ -207,8 +234,10 @@ class ScriptedExpert:
         qs = np.linspace(q_now, q_goal, max(2, int(np.ceil(abs(q_goal - q_now) / step)) + 1))
         tcp = self.env.tcp_pose()
         path = [_part_motion(joint.type, T_axis[:3, 0], T_axis[:3, 3], q - q_now) @ tcp for q in qs]
+        target = planned.poses[-1]  # go no shorter than planned
+        required = int(np.argmin([np.linalg.norm(T[:3, 3] - target[:3, 3]) for T in path])) + 1
         try:
-            return self._follow(path, self.env.robot.arm_positions())
+            return self._follow(path, self.env.robot.arm_positions(), required)
         except PlanningError:
             return planned
 
@@ -235,13 +264,19 @@ class ScriptedExpert:
             raise PlanningError(f"IK at {np.round(T[:3, 3], 3)}: {result.message}")
         return result.angles
 
-    def _follow(self, poses: list[np.ndarray], seed: np.ndarray) -> "Motion":
-        """IK along a dense Cartesian path, each pose seeded by the previous solution."""
+    def _follow(self, poses: list[np.ndarray], seed: np.ndarray, required: int | None = None) -> "Motion":
+        """IK along a dense Cartesian path, each pose seeded by the previous solution. With
+        ``required``, a path that cannot be followed to its end is cut short after that many poses."""
         out, q = [], seed
-        for T in poses:
-            q_next = self._solve(T, q, self._ik_local)
-            if np.abs(q_next - q).max() > 0.35:
-                raise PlanningError(f"IK jumps {np.abs(q_next - q).max():.2f} rad along the path at {np.round(T[:3, 3], 3)}")
+        for k, T in enumerate(poses):
+            try:
+                q_next = self._solve(T, q, self._ik_local)
+                if np.abs(q_next - q).max() > 0.35:
+                    raise PlanningError(f"IK jumps {np.abs(q_next - q).max():.2f} rad along the path at {np.round(T[:3, 3], 3)}")
+            except PlanningError:
+                if required is not None and k >= required:
+                    return Motion(np.asarray(out), poses[:k])
+                raise
             out.append(q_next)
             q = q_next
         return Motion(np.asarray(out), poses)
@@ -261,7 +296,7 @@ class ScriptedExpert:
         vel = np.outer((30 * s**2 - 60 * s**3 + 30 * s**4) / duration, q1 - q0)
         self.env.follow_trajectory(s * duration, pos, vel, settle=0.2)
 
-    def _execute(self, motion: "Motion", speed: float) -> None:
+    def execute_motion(self, motion: "Motion", speed: float) -> None:
         """Follow a motion's joint waypoints, timed for the Cartesian speed and joint limits."""
         joints, poses = motion.joints, motion.poses
         if len(joints) < 2:
@@ -283,6 +318,25 @@ class Motion:
 
     joints: np.ndarray
     poses: list[np.ndarray]
+
+    def __getitem__(self, index: slice) -> "Motion":
+        return Motion(self.joints[index], self.poses[index])
+
+
+@dataclass
+class ExpertPlan:
+    """Everything :meth:`ScriptedExpert.run` executes for one task."""
+
+    task: ExpertTask
+    strategy: str  # "grasp" or "push"
+    handle: Handle
+    dof: int  # index of the DoF in the object's DoF order
+    goal: float  # DoF value the manipulation aims at
+    opening: float  # gripper opening (fraction of the stroke) while reaching and releasing
+    approach: Motion  # from the approach start straight to p1
+    manipulation: Motion  # p1 -> p2
+    retreat: Motion
+    keyposes: list[tuple[int, np.ndarray, bool]]
 
 
 def _line(A: np.ndarray, B: np.ndarray, step: float = 0.01) -> list[np.ndarray]:

@@ -2,7 +2,8 @@
 
 A goal ends when the finger position is within ``goal_tolerance`` of the command (reached), or
 when the fingers have not moved faster than ``stall_velocity`` for ``stall_timeout`` seconds
-(stalled: closed on a handle, or blocked). With ``allow_stalling`` a stall is a success - a
+(stalled: closed on a handle, or blocked). The speed is measured from successive positions:
+PhysX reports a finger pressing against its joint limit with a non-zero joint velocity. With ``allow_stalling`` a stall is a success - a
 gripper closed on a handle is exactly what a grasp looks like - otherwise it aborts.
 """
 from __future__ import annotations
@@ -29,12 +30,16 @@ class GripperGoal:
         self.stall_timeout = stall_timeout
         self.allow_stalling = allow_stalling
         self._last_movement = now
+        self._last: tuple[float, float] | None = None  # (time, position) of the previous update
 
-    def update(self, now: float, position: float, velocity: float) -> GripperOutcome | None:
-        """The goal's outcome given the finger state at ``now``, or None while it runs."""
+    def update(self, now: float, position: float) -> GripperOutcome | None:
+        """The goal's outcome given the finger position at ``now``, or None while it runs."""
         if abs(position - self.target) < self.goal_tolerance:
             return GripperOutcome(succeeded=True, reached_goal=True, stalled=False)
-        if abs(velocity) > self.stall_velocity:
+        previous, self._last = self._last, (now, position)
+        if previous is None or now <= previous[0]:
+            return None
+        if abs(position - previous[1]) / (now - previous[0]) > self.stall_velocity:
             self._last_movement = now
             return None
         if now - self._last_movement > self.stall_timeout:

@@ -68,14 +68,28 @@ class RaycastRenderer:
 
     def __init__(self, scene: sapien.Scene, cameras: list[CameraSpec]) -> None:
         self._scene = scene
-        self._cameras = list(cameras)
-        self._rays_optical = {c.name: c.pixel_rays().reshape(-1, 3) for c in self._cameras}
+        self._rays_optical = {c.name: c.pixel_rays().reshape(-1, 3) for c in cameras}
+        self._cameras: list[CameraSpec] = []
+        self._rays_world: dict[str, np.ndarray] = {}
+        self._place(cameras)
         # entity per_scene_id -> (name, vertices in entity frame, triangles), filled lazily:
         # entities added by a reset are meshed on first sight, removed ones are never posed.
         self._meshes: dict[int, tuple[str, np.ndarray, np.ndarray] | None] = {}
 
+    def _place(self, cameras: list[CameraSpec]) -> None:
+        """Set the camera poses and precompute each camera's rays (origin, direction) in world."""
+        self._cameras = list(cameras)
+        for cam in self._cameras:
+            rays_opt = self._rays_optical[cam.name]
+            R, p = cam.T_world_optical[:3, :3], cam.T_world_optical[:3, 3]
+            rays = np.empty((len(rays_opt), 6), dtype=np.float32)
+            rays[:, :3] = p
+            # per-column products instead of a BLAS matmul: cheap and single-threaded
+            rays[:, 3:] = rays_opt[:, :1] * R[:, 0] + rays_opt[:, 1:2] * R[:, 1] + rays_opt[:, 2:] * R[:, 2]
+            self._rays_world[cam.name] = rays
+
     def set_camera_poses(self, T_world_optical: dict[str, np.ndarray]) -> None:
-        self._cameras = [c.with_pose(T_world_optical.get(c.name, c.T_world_optical)) for c in self._cameras]
+        self._place([c.with_pose(T_world_optical.get(c.name, c.T_world_optical)) for c in self._cameras])
 
     def _entity_mesh(self, entity: sapien.Entity) -> tuple[str, np.ndarray, np.ndarray] | None:
         key = entity.per_scene_id
@@ -122,11 +136,7 @@ class RaycastRenderer:
         frames = {}
         for cam in self._cameras:
             rays_opt = self._rays_optical[cam.name]
-            R, p = cam.T_world_optical[:3, :3], cam.T_world_optical[:3, 3]
-            rays = np.empty((len(rays_opt), 6), dtype=np.float32)
-            rays[:, :3] = p
-            rays[:, 3:] = rays_opt @ R.T
-            hit = rc.cast_rays(o3d.core.Tensor(rays))
+            hit = rc.cast_rays(o3d.core.Tensor(self._rays_world[cam.name]))
             t = hit["t_hit"].numpy()  # the direction has optical z = 1, so t is the depth
             geometry = hit["geometry_ids"].numpy().astype(np.int64)
             geometry[geometry >= len(ids) - 1] = len(ids) - 1  # INVALID_ID (uint32 max) -> "nothing"

@@ -47,6 +47,7 @@ class SimRobot:
 
     def __init__(self, scene: sapien.Scene, spec: RobotSpec, keep_visuals: bool = False, gains: DriveGains = DriveGains()):
         self.spec = spec
+        self.scene = scene  # SAPIEN frees the articulation with its scene: keep it alive
         urdf = movable_gripper_urdf(spec)
         limits = _urdf_joint_limits(urdf)
         loader = scene.create_urdf_loader()

@@ -316,8 +316,8 @@ def window(rng: np.random.Generator, object_id: str) -> ObjectModel:
 def storage_box(rng: np.random.Generator, object_id: str) -> ObjectModel:
     """A box on a stand with a lid hinged at the back, lifted by a tab or a knob on its front."""
     pal = Palette.sample(rng)
-    w, d, hb, stand, t = rng.uniform(0.26, 0.42), rng.uniform(0.2, 0.28), rng.uniform(0.1, 0.18), rng.uniform(0.16, 0.26), 0.012
-    b = Builder(object_id, "box", {"front_distance": 0.45})
+    w, d, hb, stand, t = rng.uniform(0.26, 0.42), rng.uniform(0.18, 0.25), rng.uniform(0.1, 0.16), rng.uniform(0.1, 0.18), 0.012
+    b = Builder(object_id, "box", {"front_distance": 0.38})
     b.base.shapes.append(box((-d / 2 + 0.02, -w / 2 + 0.02, 0.0), (d / 2 - 0.02, w / 2 - 0.02, stand), pal.accent))
     shell(b.base, (-d / 2, d / 2), (-w / 2, w / 2), (stand, stand + hb), t, pal.body)
     b.base.shapes.append(box((-d / 2, -w / 2 + t, stand), (-d / 2 + t, w / 2 - t, stand + hb), pal.body))  # front wall

@@ -26,7 +26,7 @@ Vec3 = tuple[float, float, float]
 RGBA = tuple[float, float, float, float]
 
 # Version of the generator's output: bump it to invalidate cached object folders.
-FORMAT_VERSION = 4
+FORMAT_VERSION = 6
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,222 @@
+"""control_node over rclpy against the real sim_node: keyposes, a drawer pull, cancel, fallbacks.
+
+The drawer's handle pose is privileged information read from an in-process SimEnv built with
+the sim node's scene parameters (same category, instance and seed: same placement).
+"""
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from actaim2.control.model import RobotModel
+from actaim2.geometry import matrix_to_pose, rotation_angle
+from actaim2.robots import load_robot_spec
+
+from conftest import wait_for
+
+SCENE = {"category": "table", "instance": 0, "seed": 0}
+SIM_PARAMS = {
+    "robot": "panda", "camera_rate": 0.0, "render_path": "raycast", **SCENE,
+    # PhysX reports ~2e-3 rad/s on fingers squeezing a handle: count that as stalled
+    "gripper_stall_velocity": 0.01,
+}
+DOWN_QUAT = [1.0, 0.0, 0.0, 0.0]  # tcp pointing down (x, y, z, w)
+
+
+@pytest.fixture(scope="module")
+def panda() -> RobotModel:
+    return RobotModel(load_robot_spec("panda"))
+
+
+@pytest.fixture(scope="module")
+def drawer() -> dict:
+    """Grasp pose of the drawer handle, its opening direction and the DoF's range."""
+    from actaim2.sim.env import SimEnv
+
+    env = SimEnv("panda", cameras=None)
+    info = env.reset(SCENE["category"], instance=SCENE["instance"], seed=SCENE["seed"])
+    handle = env.object.handles[0]
+    joint = env.object.joints[env.object.dof_index(handle.joint)]
+    T = env.object.link(handle.link).entity_pose.to_transformation_matrix() @ handle.tcp_in_link()
+    i = info.dof_names.index(handle.joint)
+    return {"T": T, "opening": joint.get_global_pose().to_transformation_matrix()[:3, 0], "joint": handle.joint,
+            "range": float(info.dof_upper[i] - info.dof_lower[i])}
+
+
+class Recorder:
+    """Latest and timed /joint_states, /object_state and /keypose seen by the test node."""
+
+    def __init__(self, node) -> None:
+        from actaim2_msgs.msg import Keypose
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+        from sensor_msgs.msg import JointState
+
+        self.lock = threading.Lock()
+        self.joints: list[tuple[float, dict, dict]] = []  # (monotonic time, positions, velocities)
+        self.object: dict[str, float] = {}
+        self.keyposes = []
+        node.create_subscription(JointState, "/joint_states", self._on_joints, 50)
+        node.create_subscription(JointState, "/object_state", lambda m: self.object.update(zip(m.name, m.position)), 10)
+        node.create_subscription(Keypose, "/keypose", self.keyposes.append, QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+
+    def _on_joints(self, msg) -> None:
+        with self.lock:
+            self.joints.append((time.monotonic(), dict(zip(msg.name, msg.position)), dict(zip(msg.name, msg.velocity))))
+
+    def arm(self, names, since: float = -np.inf, until: float = np.inf):
+        with self.lock:
+            rows = [(t, p, v) for t, p, v in self.joints if since <= t <= until]
+        return (np.array([t for t, _, _ in rows]), np.array([[p[n] for n in names] for _, p, _ in rows]),
+                np.array([[v[n] for n in names] for _, _, v in rows]))
+
+
+class KeyposeClient:
+    def __init__(self, node) -> None:
+        from actaim2_msgs.action import ExecuteKeypose
+        from rclpy.action import ActionClient
+
+        self.Action = ExecuteKeypose
+        self.client = ActionClient(node, ExecuteKeypose, "/execute_keypose")
+        self.feedback = []
+
+    def goal(self, phase, position, quat_xyzw, closed, scaling=0.0, frame="world"):
+        goal = self.Action.Goal(velocity_scaling=float(scaling))
+        k = goal.keypose
+        k.header.frame_id = frame
+        k.phase, k.gripper_closed = phase, closed
+        k.pose.position.x, k.pose.position.y, k.pose.position.z = (float(v) for v in position)
+        o = k.pose.orientation
+        o.x, o.y, o.z, o.w = (float(v) for v in quat_xyzw)
+        return goal
+
+    def send(self, goal, timeout: float = 60.0, on_feedback=None):
+        """Send and return the goal handle."""
+        self.feedback = []
+
+        def keep(msg):
+            self.feedback.append((time.monotonic(), msg.feedback))
+            if on_feedback is not None:
+                on_feedback(msg.feedback)
+
+        sent = self.client.send_goal_async(goal, feedback_callback=keep)
+        assert wait_for(sent.done, 10.0) and sent.result().accepted
+        return sent.result()
+
+    def result(self, handle, timeout: float = 60.0):
+        future = handle.get_result_async()
+        assert wait_for(future.done, timeout), "no result"
+        return future.result().status, future.result().result
+
+    def execute(self, goal, timeout: float = 60.0):
+        return self.result(self.send(goal), timeout)
+
+
+def tcp_error(panda: RobotModel, recorder: Recorder, position, quat_xyzw) -> tuple[float, float]:
+    from actaim2.geometry import pose_to_matrix
+
+    _, q, _ = recorder.arm(panda.joint_names)
+    T, goal = panda.fk(q[-1]), pose_to_matrix(position, quat_xyzw)
+    return float(np.linalg.norm(T[:3, 3] - goal[:3, 3])), rotation_angle(T[:3, :3], goal[:3, :3])
+
+
+def start_cell(start_node, ros_node, control_params: dict | None = None):
+    start_node("actaim2_sim", "sim_node", SIM_PARAMS)
+    control = start_node("actaim2_control", "control_node", control_params or {})
+    recorder, client = Recorder(ros_node), KeyposeClient(ros_node)
+    assert client.client.wait_for_server(timeout_sec=30.0), control.output()
+    assert wait_for(lambda: len(recorder.joints) > 5, 30.0), "no /joint_states from the sim"
+    return recorder, client
+
+
+def test_malformed_goals_are_rejected_with_a_message(start_node, ros_node):
+    from action_msgs.msg import GoalStatus
+
+    node = start_node("actaim2_control", "control_node", {"joint_states_wait": 0.5})
+    client = KeyposeClient(ros_node)
+    assert client.client.wait_for_server(timeout_sec=30.0), node.output()
+    cases = [
+        (client.goal(0, [0.4, float("nan"), 0.4], DOWN_QUAT, False), "not finite"),
+        (client.goal(0, [0.4, 0.0, 0.4], [0.0, 0.0, 0.0, 0.5], False), "unit quaternion"),
+        (client.goal(0, [0.4, 0.0, 0.4], DOWN_QUAT, False, frame="camera_link"), "frame 'camera_link'"),
+        (client.goal(7, [0.4, 0.0, 0.4], DOWN_QUAT, False), "unknown phase 7"),
+        (client.goal(0, [0.4, 0.0, 0.4], DOWN_QUAT, False, scaling=1.5), "velocity_scaling"),
+        # well-formed, but there is no robot: nothing moves, the reason is given
+        (client.goal(0, [0.4, 0.0, 0.4], DOWN_QUAT, False), "/joint_states"),
+    ]
+    for goal, expected in cases:
+        status, result = client.execute(goal, timeout=20.0)
+        assert status == GoalStatus.STATUS_ABORTED and not result.success
+        assert expected in result.message, result.message
+    assert node.alive()
+
+
+def test_four_phase_drawer_pull_through_the_sim(start_node, ros_node, panda, drawer):
+    from action_msgs.msg import GoalStatus
+
+    recorder, client = start_cell(start_node, ros_node)
+    assert wait_for(lambda: drawer["joint"] in recorder.object, 10.0)
+    dof_before = recorder.object[drawer["joint"]]
+    T = drawer["T"]
+    p1, approach = T[:3, 3], T[:3, 2]
+    p2 = p1 + 0.12 * drawer["opening"]
+    _, quat = matrix_to_pose(T)
+    phases = [(0, p1 - 0.12 * approach, False), (1, p1, False), (2, p1, True), (3, p2, True)]
+    for phase, position, closed in phases:
+        start = time.monotonic()
+        status, result = client.execute(client.goal(phase, position, quat, closed))
+        end = time.monotonic()
+        assert status == GoalStatus.STATUS_SUCCEEDED and result.success, result.message
+        assert result.position_error <= 0.005 and result.orientation_error <= np.radians(3.0)
+        # measured independently from /joint_states
+        position_error, orientation_error = tcp_error(panda, recorder, position, quat)
+        assert position_error <= 0.005 and orientation_error <= np.radians(3.0), (phase, position_error, orientation_error)
+        assert client.feedback and client.feedback[-1][1].phase == phase and client.feedback[-1][1].progress == 1.0
+        if phase == 3:  # the grasped drawer came along a straight line
+            _, q, _ = recorder.arm(panda.joint_names, since=start, until=end)
+            tcp = np.array([panda.fk(qi)[:3, 3] for qi in q])
+            ab = p2 - p1
+            s = np.clip((tcp - p1) @ ab / (ab @ ab), 0.0, 1.0)
+            deviation = np.linalg.norm(tcp - (p1 + s[:, None] * ab), axis=1)
+            assert len(q) > 20 and deviation.max() <= 0.002, deviation.max()
+    moved = recorder.object[drawer["joint"]] - dof_before
+    assert abs(moved) > 0.3 * drawer["range"], moved
+    assert wait_for(lambda: len(recorder.keyposes) == 4, 5.0)
+    assert [k.phase for k in recorder.keyposes] == [0, 1, 2, 3] and recorder.keyposes[1].header.frame_id == "world"
+
+
+def test_cancel_stops_the_arm_within_half_a_second(start_node, ros_node, panda):
+    from action_msgs.msg import GoalStatus
+
+    recorder, client = start_cell(start_node, ros_node)
+    moving = threading.Event()
+    # a long, slow joint-space move: home -> far to the left and down
+    handle = client.send(client.goal(0, [0.3, 0.45, 0.25], DOWN_QUAT, False, scaling=0.15),
+                         on_feedback=lambda f: f.progress > 0.3 and moving.set())
+    assert moving.wait(30.0), "the arm never got under way"
+    _, _, v = recorder.arm(panda.joint_names, since=time.monotonic() - 0.2)
+    assert np.abs(v).max() > 0.1  # really moving when cancelled
+    cancelled_at = time.monotonic()
+    handle.cancel_goal_async()
+    status, result = client.result(handle, timeout=10.0)
+    assert status == GoalStatus.STATUS_CANCELED and not result.success and "cancel" in result.message
+    time.sleep(0.5)  # record what happens after the stop
+    t, _, v = recorder.arm(panda.joint_names, since=cancelled_at)
+    still = np.all(np.abs(v) < 0.02, axis=1)
+    moving_after = t[~still]
+    stopped_at = moving_after.max() if len(moving_after) else cancelled_at
+    assert stopped_at - cancelled_at <= 0.5, stopped_at - cancelled_at
+    assert still[-10:].all()
+
+
+def test_jtc_topic_fallback_when_the_action_is_absent(start_node, ros_node, panda):
+    from action_msgs.msg import GoalStatus
+
+    recorder, client = start_cell(start_node, ros_node, {"arm_action": "/no_such_controller/follow_joint_trajectory", "server_wait": 0.5})
+    position = [0.4, -0.1, 0.35]
+    status, result = client.execute(client.goal(0, position, DOWN_QUAT, False))
+    assert status == GoalStatus.STATUS_SUCCEEDED and result.success, result.message
+    position_error, orientation_error = tcp_error(panda, recorder, position, DOWN_QUAT)
+    assert position_error <= 0.005 and orientation_error <= np.radians(3.0)

@@ -1,0 +1,114 @@
+"""The articulated-object library: catalogue, splits, and every instance of every category built in SAPIEN."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sapien
+
+from actaim2.sim.objects import catalog
+from actaim2.sim.objects.loader import aabb, load_object
+from actaim2.sim.objects.model import read_handles, read_meta
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("objects")
+
+
+@pytest.fixture(scope="module")
+def scene():
+    scene = sapien.Scene([sapien.physx.PhysxCpuSystem()])
+    scene.set_timestep(1.0 / 240.0)
+    return scene
+
+
+def test_splits_follow_the_paper():
+    seen, unseen = catalog.split_instances("train_seen"), catalog.split_instances("train_unseen_instance")
+    heldout = catalog.split_instances("heldout_category")
+    train_categories = {"faucet", "table", "storage_furniture", "door", "refrigerator", "switch"}
+    assert {c for c, _ in seen} == {c for c, _ in unseen} == train_categories
+    assert {c for c, _ in heldout} == {"window", "box", "safe"}
+    for split in (seen, unseen, heldout):
+        for category in {c for c, _ in split}:
+            assert sum(c == category for c, _ in split) >= 8
+    assert not set(seen) & set(unseen), "an instance is both seen and unseen"
+    for category in train_categories:
+        assert len(catalog.category_instances(category)) >= 16
+    assert catalog.split_instances("real_robot") == [("three_drawer_shelf", 0)]
+    with pytest.raises(ValueError, match="unknown split"):
+        catalog.split_instances("test")
+
+
+def test_generation_is_deterministic_and_instances_differ():
+    a, b = catalog.generate("storage_furniture", 3), catalog.generate("storage_furniture", 3)
+    assert a.to_urdf() == b.to_urdf()
+    assert len({catalog.generate("door", i).to_urdf() for i in range(8)}) == 8
+    with pytest.raises(ValueError, match="unknown object category"):
+        catalog.generate("teapot", 0)
+
+
+@pytest.mark.parametrize("category", catalog.list_categories())
+def test_every_instance_builds(category, cache, scene):
+    """Each instance loads as one articulation with finite limits, a handle on every movable part,
+    the half-open state inside its limits, and the object standing on the floor in front of the robot."""
+    kinds = set()
+    for instance in catalog.category_instances(category):
+        folder = catalog.object_folder(category, instance, cache)
+        obj = load_object(scene, folder)
+        try:
+            assert obj.category == category and obj.object_id == catalog.object_id(category, instance)
+            assert len(obj.joints) >= 1
+            assert np.all(obj.upper > obj.lower)
+            assert {h.joint for h in obj.handles} == set(obj.dof_names)
+            kinds |= {j.type for j in obj.joints}
+            obj.set_qpos((obj.lower + obj.upper) / 2)
+            np.testing.assert_allclose(obj.qpos(), (obj.lower + obj.upper) / 2, atol=1e-5)
+            lo, hi = aabb(obj.articulation)
+            assert abs(lo[2]) < 0.02, "object not on the floor"
+            assert 0.25 < lo[0] and hi[0] < 1.4 and abs(lo[1] + hi[1]) < 0.2
+            for h in obj.handles:  # every handle within the arm's reach
+                T = obj.link(h.link).entity_pose.to_transformation_matrix() @ h.tcp_in_link()
+                assert 0.25 < np.linalg.norm(T[:2, 3]) < 0.85 and 0.1 < T[2, 3] < 0.9, (obj.object_id, h)
+            assert read_meta(folder)["model_cat"] == category
+        finally:
+            scene.remove_articulation(obj.articulation)
+    if category in ("storage_furniture", "switch", "window"):
+        assert kinds == {"prismatic", "revolute_unwrapped"}, f"{category} should mix drawers/sliders and hinges"
+
+
+def test_some_objects_have_several_movable_parts(cache):
+    counts = {c: max(len(catalog.generate(c, i).movable_joints()) for i in catalog.category_instances(c)) for c in catalog.list_categories()}
+    assert counts["storage_furniture"] >= 2 and counts["table"] >= 2 and counts["refrigerator"] >= 2
+    assert counts["three_drawer_shelf"] == 3
+
+
+def test_partnet_folder_with_meshes_loads_through_the_same_path(tmp_path, scene):
+    """A folder in PartNet-Mobility layout with OBJ meshes (as real PartNet objects have) loads like a generated one."""
+    model = catalog.generate("storage_furniture", 2)
+    folder = model.write_folder(tmp_path / "partnet_like", meshes=True)
+    assert (folder / "mobility.urdf").is_file() and any((folder / "textured_objs").glob("*.obj"))
+    assert "textured_objs/" in (folder / "mobility.urdf").read_text()
+    assert (folder / "semantics.txt").read_text().split("\n")[0].split()[1:] == ["slider", "drawer"]
+    obj = load_object(scene, folder)
+    try:
+        assert obj.dof_names == [j.name for j in model.movable_joints()]
+        np.testing.assert_allclose(obj.upper, [j.upper for j in model.movable_joints()], rtol=1e-5)
+        shapes = [s for link in obj.links for s in link.collision_shapes]
+        assert shapes and all(isinstance(s, sapien.physx.PhysxCollisionShapeConvexMesh) for s in shapes)
+        assert read_handles(folder) == model.handles
+    finally:
+        scene.remove_articulation(obj.articulation)
+
+
+def test_folder_without_annotations_loads_and_bad_folders_are_refused(tmp_path, scene):
+    folder = catalog.generate("safe", 1).write_folder(tmp_path / "plain")
+    (folder / "handles.json").unlink()
+    (folder / "meta.json").unlink()
+    obj = load_object(scene, folder, front_distance=0.6)
+    try:
+        assert obj.handles == [] and obj.category == "unknown" and len(obj.joints) == 1
+        assert aabb(obj.articulation)[0][0] == pytest.approx(0.6, abs=1e-3)
+    finally:
+        scene.remove_articulation(obj.articulation)
+    with pytest.raises(FileNotFoundError, match="mobility.urdf"):
+        load_object(scene, tmp_path)
