@@ -7,6 +7,8 @@ _actaim2_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 
 # DDS stays on loopback: the project default for every process that starts rclpy.
 export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+# Fast DDS with a 32 MB shared-memory segment: clouds of a few MB are not dropped (see actaim2/runtime.py).
+export FASTRTPS_DEFAULT_PROFILES_FILE="${FASTRTPS_DEFAULT_PROFILES_FILE:-$_actaim2_root/src/actaim2/config/fastdds.xml}"
 
 if [ -x "$_actaim2_root/.venv/bin/python" ] && [ "${VIRTUAL_ENV:-}" != "$_actaim2_root/.venv" ]; then
   # shellcheck source=/dev/null

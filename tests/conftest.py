@@ -25,6 +25,9 @@ import pytest
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.setdefault("ACTAIM2_TEST_DOMAIN_ID", str(random.SystemRandom().randint(1, 100)))
 os.environ["ROS_DOMAIN_ID"] = os.environ["ACTAIM2_TEST_DOMAIN_ID"]
+from actaim2.runtime import apply_ros_defaults  # noqa: E402  (after the variables above)
+
+apply_ros_defaults()
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -81,7 +84,8 @@ class NodeProcess:
         self.proc = subprocess.Popen(cmd, stdout=self._log, stderr=subprocess.STDOUT, start_new_session=True)
 
     def output(self) -> str:
-        self._log.flush()
+        if not self._log.closed:
+            self._log.flush()
         return self.log_path.read_text(errors="replace")
 
     def alive(self) -> bool:
@@ -112,4 +116,4 @@ def start_node(tmp_path) -> Iterator[Callable[..., NodeProcess]]:
     yield _start
     for node in reversed(started):
         if node.stop() not in (0, -signal.SIGINT, 130):
-            print(f"--- {node.name} exited with {node.proc.returncode}; its output:\n{node.output()[-4000:]}")
+            print(f"--- {node.name} exited with {node.proc.returncode}; its output:\n{node.log_path.read_text(errors='replace')[-4000:]}")

@@ -6,6 +6,12 @@ Publishes what the robot driver, the cameras and ros2_control publish on the rea
 privileged /object_state. Serves FollowJointTrajectory and GripperCommand like ros2_control's
 joint_trajectory_controller and gripper_action_controller, the JTC topic, and /reset_scene.
 
+Where rclpy cannot do exactly what the C++ controllers do, the node stays as close as it can:
+an invalid trajectory goal is accepted and at once aborted with its error_code and
+error_string (a ROS 2 rejection carries no result); a goal replaced by a newer one is aborted
+with a "preempted" error_string (rclpy cannot cancel a goal nobody asked to cancel). Gripper
+positions are finger joint positions, as ros2_control commands its gripper joint.
+
 Threading: one timer steps physics, runs the controllers and renders the cameras when their
 sim-time period is due, holding ``_lock`` (the simulation and the goal slots) while it works.
 /reset_scene, the JTC topic and the action callbacks run on other executor threads and take the
@@ -53,7 +59,7 @@ from actaim2_perception.transforms import StaticTransformPublisher, matrix_to_tr
 
 from actaim2_sim.parameters import declare_parameters
 
-MAX_CATCH_UP = 0.25  # sim seconds per tick at most when behind real time (no spiral of death)
+MAX_CATCH_UP = 0.25  # wall seconds of lag made up per tick at most (no spiral of death when behind)
 FAST_TICK_BUDGET = 0.02  # wall seconds of stepping per tick with real_time_factor 0
 
 
@@ -146,6 +152,7 @@ class SimNode(Node):
         self._next_feedback_time = 0.0
         self._next_camera_time = 0.0
         self._wall_last = time.monotonic()
+        self._sim_target = self.env.time
         self.create_timer(p.tick_period, self._tick, callback_group=loop_group)
 
     # -- static frames ------------------------------------------------------------------------
@@ -169,8 +176,10 @@ class SimNode(Node):
         wall_now = time.monotonic()
         env = self.env
         if self.p.real_time_factor > 0:
-            target = env.time + min((wall_now - self._wall_last) * self.p.real_time_factor, MAX_CATCH_UP)
-            while env.time + 0.5 * env.timestep < target:
+            # an accumulated target keeps the fractions of a step that one tick leaves over
+            rtf = self.p.real_time_factor
+            self._sim_target = min(self._sim_target + (wall_now - self._wall_last) * rtf, env.time + MAX_CATCH_UP * rtf)
+            while env.time + 0.5 * env.timestep < self._sim_target:
                 self._physics_step()
         else:
             deadline = wall_now + FAST_TICK_BUDGET
@@ -342,7 +351,8 @@ class SimNode(Node):
         """Abort the running arm and gripper goals (scene reset, shutdown); call with ``_lock``."""
         aborted = []
         if self._arm_goal is not None:
-            self._arm_goal.finish("abort", FollowJointTrajectory.Result(error_code=INVALID_GOAL, error_string=f"aborted: {reason}"))
+            result = FollowJointTrajectory.Result(error_code=INVALID_GOAL, error_string=f"aborted: {reason}")
+            self._arm_goal.finish("abort", result)
             aborted.append(self._arm_goal)
         if self._gripper_goal is not None:
             self._gripper_goal[0].finish("abort", self._gripper_result(GripperOutcome(False, False, False)))
@@ -398,7 +408,12 @@ def main(args: list[str] | None = None) -> None:
     # Ctrl-C as a plain KeyboardInterrupt: the context stays valid until the running goals have
     # been aborted, so their clients get a result instead of a vanished server.
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    node = SimNode()
+    try:
+        node = SimNode()
+    except ValueError as exc:  # a bad parameter: say which one, without a traceback
+        rclpy.logging.get_logger("sim_node").fatal(str(exc))
+        rclpy.try_shutdown()
+        raise SystemExit(1) from None
     # Action goals wait in executor threads for the loop to finish them: allow several at once.
     executor = MultiThreadedExecutor(num_threads=8)
     try:

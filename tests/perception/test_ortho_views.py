@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from actaim2.perception.ortho_views import CHANNELS, EMPTY_VALUE, VIEWS, project, render_views, unproject
+from actaim2.perception.ortho_views import CHANNELS, DEPTH_STEP, EMPTY_VALUE, VIEWS, project, render_views, unproject
 
 CENTER = (0.5, 0.0, 0.4)
 HALF = 0.6
@@ -33,7 +33,7 @@ def test_a_point_lands_on_the_expected_pixel_of_each_view():
         occupied = np.argwhere(channel(views, "occupancy")[i] > 0)
         assert occupied.tolist() == [[v, u]], view
         pixel = views[i, :, v, u]
-        np.testing.assert_allclose(pixel[CHANNELS.index("depth")], depth, atol=1e-6)
+        np.testing.assert_allclose(pixel[CHANNELS.index("depth")], depth, atol=DEPTH_STEP)
         np.testing.assert_allclose(pixel[[CHANNELS.index(c) for c in "xyz"]], POINT, atol=1e-6)
         np.testing.assert_allclose(pixel[[CHANNELS.index(c) for c in "rgb"]], [1.0, 0.0, 0.2], atol=1e-6)
     empty = channel(views, "occupancy") == 0
@@ -58,7 +58,7 @@ def test_z_buffer_keeps_the_nearest_point_and_ignores_outside_and_nan():
     u, v, _ = EXPECTED["top"]
     assert channel(views, "occupancy")[top].sum() == 1  # both points share the top pixel
     np.testing.assert_allclose(channel(views, "g")[top, v, u], 1.0)  # the upper one wins
-    np.testing.assert_allclose(channel(views, "depth")[top, v, u], 0.5, atol=1e-6)
+    np.testing.assert_allclose(channel(views, "depth")[top, v, u], 0.5, atol=DEPTH_STEP)
     assert channel(views, "occupancy")[VIEWS.index("front")].sum() == 2
 
 

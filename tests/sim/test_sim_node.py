@@ -11,26 +11,23 @@ Two node processes, one after the other (they serve the same names):
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
+from actaim2_msgs.srv import ResetScene
+from builtin_interfaces.msg import Duration
+from control_msgs.action import FollowJointTrajectory, GripperCommand
+from rclpy.action import ActionClient
+from rclpy.qos import qos_profile_sensor_data
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState, PointCloud2, PointField
+from tf2_msgs.msg import TFMessage
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from actaim2.robots import load_robot_spec
+from actaim2_perception.pointcloud2 import from_msg
+from actaim2_perception.transforms import TF_STATIC_LISTENER_QOS, transform_to_matrix
 from conftest import NodeProcess, wait_for
-
-rclpy = pytest.importorskip("rclpy")
-from actaim2_msgs.srv import ResetScene  # noqa: E402
-from builtin_interfaces.msg import Duration  # noqa: E402
-from control_msgs.action import FollowJointTrajectory, GripperCommand  # noqa: E402
-from rclpy.action import ActionClient  # noqa: E402
-from rclpy.qos import qos_profile_sensor_data  # noqa: E402
-from rosgraph_msgs.msg import Clock  # noqa: E402
-from sensor_msgs.msg import JointState, PointCloud2, PointField  # noqa: E402
-from tf2_msgs.msg import TFMessage  # noqa: E402
-from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E402
-
-from actaim2.robots import load_robot_spec  # noqa: E402
-from actaim2_perception.pointcloud2 import from_msg  # noqa: E402
-from actaim2_perception.transforms import TF_STATIC_LISTENER_QOS, transform_to_matrix  # noqa: E402
 
 SPEC = load_robot_spec("panda")
 ARM = list(SPEC.arm_joints)
@@ -166,8 +163,7 @@ def current_arm(joints: Inbox) -> np.ndarray:
 def arm_client(kinect_node, ros_node):
     client = ActionClient(ros_node, FollowJointTrajectory, "/joint_trajectory_controller/follow_joint_trajectory")
     assert client.wait_for_server(timeout_sec=60.0), kinect_node.output()[-3000:]
-    yield client
-    client.destroy()
+    return client  # destroyed with ros_node (destroying it while the executor spins races)
 
 
 def test_trajectory_goals_follow_jtc_semantics(arm_client, ros_node):
@@ -180,7 +176,8 @@ def test_trajectory_goals_follow_jtc_semantics(arm_client, ros_node):
 
     # bad requests: refused with the FollowJointTrajectory error code and a reason; the arm stays
     bad = {
-        "unknown joint": (trajectory(ARM[:-1] + ["elbow_joint"], [(1.0, target)]), FollowJointTrajectory.Result.INVALID_JOINTS, "elbow_joint"),
+        "unknown joint": (trajectory(ARM[:-1] + ["elbow_joint"], [(1.0, target)]), FollowJointTrajectory.Result.INVALID_JOINTS,
+                          "elbow_joint"),
         "NaN": (trajectory(ARM, [(1.0, [math.nan] + list(target[1:]))]), FollowJointTrajectory.Result.INVALID_GOAL, "non-finite"),
         "times": (trajectory(ARM, [(1.0, target), (0.5, q0)]), FollowJointTrajectory.Result.INVALID_GOAL, "strictly increasing"),
     }
@@ -235,7 +232,6 @@ def test_gripper_reaches_or_stalls(kinect_node, ros_node):
     accepted, result = send(client, goal)
     assert accepted and result.stalled and not result.reached_goal
     assert result.position == pytest.approx(SPEC.gripper_closed, abs=0.002)
-    client.destroy()
 
 
 def test_reset_scene_answers_bad_requests_and_reports_dof_limits(kinect_node, ros_node):

@@ -49,6 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=float, default=8.0, help="s of node measurement per rate")
     parser.add_argument("--threads", type=int, default=1, help="torch CPU threads (the node's default is 1)")
     parser.add_argument("--skip-node", action="store_true", help="in-process numbers only")
+    parser.add_argument("--fastdds-profile", type=Path, help="Fast DDS XML profile for both processes (FASTRTPS_DEFAULT_PROFILES_FILE)")
 
 
 @dataclass(frozen=True)
@@ -138,9 +139,11 @@ def in_process(scene: Scene, resolution: int, repeats: int) -> tuple[np.ndarray,
     return np.array(wall), np.array(cpu)
 
 
-def _ros_env() -> dict[str, str]:
+def _ros_env(fastdds_profile: Path | None) -> dict[str, str]:
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     env["ROS_DOMAIN_ID"] = str(random.SystemRandom().randint(101, 200))  # away from the tests' 1-100
+    if fastdds_profile is not None:
+        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(fastdds_profile.resolve())
     return env
 
 
@@ -164,9 +167,11 @@ def _stop(process: subprocess.Popen) -> None:
             process.wait()
 
 
-def through_node(scene: Scene, resolution: int, rates: list[float], duration: float, workdir: Path) -> list[dict]:
+def through_node(
+    scene: Scene, resolution: int, rates: list[float], duration: float, workdir: Path, fastdds_profile: Path | None
+) -> list[dict]:
     """One fusion_node; one latency_probe run per input rate. Returns the probes' JSON results."""
-    env = _ros_env()
+    env = _ros_env(fastdds_profile)
     scene_file = workdir / f"{scene.rig}.npz"
     save_scene(scene, scene_file)
     node = _ros_run(
@@ -206,7 +211,10 @@ def main(args: argparse.Namespace) -> int:
     import torch
 
     torch.set_num_threads(args.threads)
-    print(f"machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f} at start, torch threads {args.threads}")
+    print(
+        f"machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f} at start, torch threads {args.threads}, "
+        f"Fast DDS profile: {args.fastdds_profile or os.environ.get('FASTRTPS_DEFAULT_PROFILES_FILE') or 'default'}"
+    )
     print("\n| rig | views px | path | input Hz | output Hz | p50 ms | p99 ms | CPU p50 ms | n | target |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     scenes = {rig: build_scene(rig) for rig in args.rigs}
@@ -222,7 +230,8 @@ def main(args: argparse.Namespace) -> int:
     with tempfile.TemporaryDirectory(prefix="bench_perception_") as tmp:
         for rig, scene in scenes.items():
             for resolution in args.resolutions:
-                for result in through_node(scene, resolution, [NODE_RATES[rig], CAPACITY_RATE], args.duration, Path(tmp)):
+                rates = [NODE_RATES[rig], CAPACITY_RATE]
+                for result in through_node(scene, resolution, rates, args.duration, Path(tmp), args.fastdds_profile):
                     if "error" in result:
                         print(f"| {rig} | {resolution} | node | {result['rate']:g} | error: {result['error']} | | | | | |")
                         continue

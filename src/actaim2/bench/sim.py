@@ -87,7 +87,8 @@ def _bench_path(path: str, args) -> dict[str, float]:
     }
     frames = env.observe().frames
     out["encode"] = _median_ms(lambda: [encode(f.xyz, f.rgb) for f in frames.values()], args.frames)
-    for key, cameras in (("one_camera", make_rig("ring5", WORKSPACE_CENTER)[:1]), ("kinect", make_rig("azure_kinect", WORKSPACE_CENTER))):
+    single_cameras = {"one_camera": make_rig("ring5", WORKSPACE_CENTER)[:1], "kinect": make_rig("azure_kinect", WORKSPACE_CENTER)}
+    for key, cameras in single_cameras.items():
         rig = CameraRig(env.scene, cameras, env.render_path)
         rig.observe(env.time)
         out[key] = _median_ms(lambda: rig.observe(env.time), args.frames)

@@ -24,8 +24,8 @@ class CloudConfig:
     plane_distance: float = 0.006  # RANSAC inlier distance (m)
     support_max_tilt_deg: float = 15.0  # a support plane is within this of horizontal
     support_band: float = 0.05  # ... and within this of the cloud's lowest point (m)
-    part_plane_min_fraction: float = 0.08  # an object face is a plane holding this share of points
-    max_part_planes: int = 6
+    part_plane_min_fraction: float = 0.02  # an object face is a plane holding this share of points
+    max_part_planes: int = 10
     dbscan_eps: float = 0.015
     dbscan_min_points: int = 8
     segment_min_points: int = 15

@@ -61,23 +61,23 @@ def voxel_downsample(xyz: np.ndarray, rgb: np.ndarray, origin: np.ndarray, voxel
     """Mean position and colour per occupied voxel of a grid of ``cells``^3 starting at ``origin``.
 
     Grouping sorts ``voxel key << 32 | point index`` with numpy's SIMD sort (1-3 ms for 180k
-    points here, against 6-10 ms for torch.unique), then sums each group with reduceat on
-    contiguous columns.
+    points here, against 6-10 ms for torch.unique); the sums then go through torch's index_add_
+    over the sorted voxel ids, 5x faster here than numpy's reduceat or bincount.
     """
     k = ((xyz - origin) / voxel_size).astype(np.int64)  # points are inside the grid: trunc = floor
     np.clip(k, 0, cells - 1, out=k)
     key = (k[:, 0] * cells + k[:, 1]) * cells + k[:, 2]
     ordered = np.sort((key << 32) | np.arange(len(key)))
-    order = ordered & 0xFFFFFFFF
     voxel = ordered >> 32
     first = np.empty(len(ordered), dtype=bool)
     first[0] = True
     np.not_equal(voxel[1:], voxel[:-1], out=first[1:])
-    starts = np.flatnonzero(first)
-    counts = np.diff(np.append(starts, len(ordered))).astype(np.float32)
-    columns = np.concatenate([xyz.T, rgb.T.astype(np.float32)])  # (6, N) contiguous rows
-    means = np.stack([np.add.reduceat(column.take(order), starts) for column in columns], axis=1) / counts[:, None]
-    return means[:, :3], np.rint(means[:, 3:]).astype(np.uint8)
+    group = torch.from_numpy(np.cumsum(first) - 1)
+    n = int(group[-1]) + 1
+    values = torch.cat([torch.from_numpy(xyz), torch.from_numpy(rgb).float()], dim=1)
+    sums = torch.zeros((n, 6)).index_add_(0, group, values.index_select(0, torch.from_numpy(ordered & 0xFFFFFFFF)))
+    means = sums / torch.bincount(group, minlength=n)[:, None]
+    return means[:, :3].numpy(), means[:, 3:].round().to(torch.uint8).numpy()
 
 
 def remove_statistical_outliers(xyz: np.ndarray, neighbors: int, std_ratio: float) -> np.ndarray:

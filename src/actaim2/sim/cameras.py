@@ -174,7 +174,9 @@ def _tf2_set_euler(yaw: float, pitch: float, roll: float) -> Rotation:
 # (K4ACalibrationTransformData::publishDepthToBaseTf): the depth camera is 1.8 mm above the
 # base origin, turned into the ROS optical convention and pitched 6 degrees downward.
 T_CAMERA_BASE_DEPTH = np.eye(4)
-T_CAMERA_BASE_DEPTH[:3, :3] = (_tf2_set_euler(-np.pi / 2, np.pi, np.pi / 2) * _tf2_set_euler(0.0, np.deg2rad(-6.0), 0.0)).as_matrix()
+T_CAMERA_BASE_DEPTH[:3, :3] = (
+    _tf2_set_euler(-np.pi / 2, np.pi, np.pi / 2) * _tf2_set_euler(0.0, np.deg2rad(-6.0), 0.0)
+).as_matrix()
 T_CAMERA_BASE_DEPTH[:3, 3] = [0.0, 0.0, 0.0018]
 
 # Azure Kinect NFOV depth: a 640x576 crop of the 1 MP ToF sensor (2x2 binned: 320x288).
@@ -223,7 +225,9 @@ def azure_kinect(
     ]
 
 
-def make_rig(rig: str, target: np.ndarray, robot_xy: np.ndarray = np.zeros(2), width: int = 0, height: int = 0) -> list[CameraSpec]:
+def make_rig(
+    rig: str, target: np.ndarray, robot_xy: np.ndarray = np.zeros(2), width: int = 0, height: int = 0
+) -> list[CameraSpec]:
     """A rig by name; ``width``/``height`` of 0 keep the rig's default resolution.
 
     The Azure Kinect only has its two NFOV depth resolutions: 320x288 (binned, the default)

@@ -21,8 +21,7 @@ import numpy as np
 from actaim2.robots import RobotSpec, load_robot_spec
 from actaim2.sim.joint_trajectory import ActiveTrajectory, TrajectoryCommand
 from actaim2.sim.objects.catalog import object_folder
-from actaim2.sim.objects.loader import DEFAULT_FRONT_DISTANCE, LoadedObject
-from actaim2.sim.objects.model import read_meta
+from actaim2.sim.objects.loader import LoadedObject, recommended_front_distance
 from actaim2.sim.robot import DriveGains, SimRobot
 from actaim2.sim.scene import SimScene
 from actaim2.sim.success import SUCCESS_FRACTION, dof_success
@@ -141,8 +140,7 @@ class SimEnv:
         folder = Path(folder)
         rng = np.random.default_rng(seed)
         dx, dy, yaw = (rng.uniform(-j, j) for j in PLACEMENT_JITTER) if jitter else (0.0, 0.0, 0.0)
-        front = float(read_meta(folder).get("params", {}).get("front_distance", DEFAULT_FRONT_DISTANCE))
-        obj = self.sim.load_object(folder, front_distance=front + dx, lateral=dy, yaw=yaw)
+        obj = self.sim.load_object(folder, front_distance=recommended_front_distance(folder) + dx, lateral=dy, yaw=yaw)
         fraction = np.broadcast_to(np.asarray(dof_fraction, dtype=float), obj.lower.shape)
         if np.any((fraction < 0.0) | (fraction > 1.0)):
             raise ValueError(f"dof_fraction must be within [0, 1], got {dof_fraction}")

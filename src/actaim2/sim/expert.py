@@ -43,14 +43,15 @@ FREE_MOVE_CLEARANCE = 0.1  # m: the joint-space move ends this much farther back
 # bar's axis: free for a round grip) and about its y axis (the closing direction: the pinch
 # stays across the bar). A Panda cannot point its hand horizontally near shoulder height
 # (joint 6 limit) nor straight down far away, so handles there are taken at an angle; flat
-# grips (lips, toggles, sliders) allow less.
+# grips (lips, toggles, sliders) turn less, or only about the closing axis.
 _ROUND = [(a, 0) for a in (0, 25, 45, -25, -45)] + [(0, 25), (0, -25)]
 TILTS = {"bar": _ROUND, "knob": _ROUND,
          "lever": _ROUND + [(0, 40), (0, -40)],
          "spout": [(0, 0), (25, 0), (-25, 0), (0, 25), (0, -25), (0, 40), (0, -40)],
          "edge": [(0, 0), (20, 0), (30, 0), (-20, 0), (0, 25), (0, -25), (0, 45), (0, -45)],
-         "toggle": [(0, 0), (20, 0), (-20, 0), (0, 20), (0, -20)],
-         "slider": [(0, 0), (20, 0), (-20, 0), (0, 20), (0, -20)]}
+         # small square knobs pinched on their flat faces: turning about the closing axis only
+         "toggle": [(0, 0), (0, 20), (0, -20), (0, 35), (0, -35)],
+         "slider": [(0, 0), (0, 20), (0, -20), (0, 35), (0, -35)]}
 
 
 @dataclass(frozen=True)

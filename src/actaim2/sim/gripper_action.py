@@ -3,8 +3,10 @@
 A goal ends when the finger position is within ``goal_tolerance`` of the command (reached), or
 when the fingers have not moved faster than ``stall_velocity`` for ``stall_timeout`` seconds
 (stalled: closed on a handle, or blocked). The speed is measured from successive positions:
-PhysX reports a finger pressing against its joint limit with a non-zero joint velocity. With ``allow_stalling`` a stall is a success - a
-gripper closed on a handle is exactly what a grasp looks like - otherwise it aborts.
+PhysX reports a finger pressing against its joint limit with a non-zero joint velocity.
+With ``allow_stalling`` a stall is a success - a gripper closed on a handle is exactly what a
+grasp looks like - otherwise it aborts. Positions are finger joint positions, as the
+ros2_control controller commands its joint (not the gap the GripperCommand comment mentions).
 """
 from __future__ import annotations
 

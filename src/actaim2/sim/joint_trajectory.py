@@ -91,7 +91,8 @@ def validate(command: TrajectoryCommand, controller_joints: tuple[str, ...], now
     missing = [n for n in controller_joints if n not in names]
     if missing:
         raise InvalidTrajectory(INVALID_JOINTS, f"joint(s) {missing} missing: every controller joint must be commanded")
-    for what, values in (("positions", command.positions), ("velocities", command.velocities), ("accelerations", command.accelerations)):
+    vectors = (("positions", command.positions), ("velocities", command.velocities), ("accelerations", command.accelerations))
+    for what, values in vectors:
         if values is not None and not np.all(np.isfinite(values)):
             point = int(np.argwhere(~np.isfinite(values))[0][0])
             raise InvalidTrajectory(INVALID_GOAL, f"point {point} has non-finite {what}")
@@ -252,7 +253,10 @@ class ArmController:
             if np.any(checked & (error > self._path_tolerance)):
                 i = int(np.argmax(checked & (error > self._path_tolerance)))
                 self.hold(q)
-                return Outcome(PATH_TOLERANCE_VIOLATED, f"{self.joints[i]} is {error[i]:.4f} from its path (tolerance {self._path_tolerance[i]:.4f})")
+                return Outcome(
+                    PATH_TOLERANCE_VIOLATED,
+                    f"{self.joints[i]} is {error[i]:.4f} from its path (tolerance {self._path_tolerance[i]:.4f})",
+                )
             return None
         checked = self._goal_tolerance > 0
         outside = checked & (error > self._goal_tolerance)

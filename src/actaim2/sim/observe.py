@@ -50,7 +50,6 @@ class CameraRig:
         self.noise = noise
         self.render_path = render_path
         self._renderer = make_renderer(render_path, scene, cameras)
-        self._rng = np.random.default_rng(seed)
         self.reset(seed)
 
     def reset(self, seed: int) -> None:

@@ -17,14 +17,17 @@ import sapien
 MAX_TRIANGLES_PER_PART = 600
 
 
-def _decimated_part(part: sapien.render.RenderShapeTriangleMeshPart, max_triangles: int) -> sapien.render.RenderShapeTriangleMesh | None:
+def _decimated_part(
+    part: sapien.render.RenderShapeTriangleMeshPart, max_triangles: int
+) -> sapien.render.RenderShapeTriangleMesh | None:
     """A one-part mesh shape with at most ``max_triangles``, or None to keep the part as is."""
     triangles = np.asarray(part.triangles)
     material = part.material
     if len(triangles) <= max_triangles or material.base_color_texture is not None or material.diffuse_texture is not None:
         return None
     mesh = o3d.geometry.TriangleMesh(
-        o3d.utility.Vector3dVector(np.asarray(part.vertices, dtype=np.float64)), o3d.utility.Vector3iVector(triangles.astype(np.int32))
+        o3d.utility.Vector3dVector(np.asarray(part.vertices, dtype=np.float64)),
+        o3d.utility.Vector3iVector(triangles.astype(np.int32)),
     )
     mesh = mesh.simplify_quadric_decimation(max_triangles)
     mesh.compute_vertex_normals()

@@ -49,7 +49,9 @@ def resolve_render_path(requested: str = "auto") -> str:
         log.info("render path: sapien (Vulkan rasteriser, shader %s)", SHADER)
         return "sapien"
     if requested == "sapien":
-        raise RuntimeError(f"render path 'sapien' requested but no Vulkan device: {error} (set VK_ICD_FILENAMES, see scripts/env.sh)")
+        raise RuntimeError(
+            f"render path 'sapien' requested but no Vulkan device: {error} (set VK_ICD_FILENAMES, see scripts/env.sh)"
+        )
     log.warning("render path: raycast (no Vulkan device: %s); colours are flat per link", error)
     return "raycast"
 

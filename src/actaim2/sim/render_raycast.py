@@ -22,7 +22,7 @@ _CYLINDER_SEGMENTS = 24
 _Z_TO_X = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # rotates +z onto +x
 
 
-def _local_mesh(shape: sapien.physx.PhysxCollisionShape) -> tuple[np.ndarray, np.ndarray] | None:
+def collision_shape_mesh(shape: sapien.physx.PhysxCollisionShape) -> tuple[np.ndarray, np.ndarray] | None:
     """(vertices, triangles) of one collision shape in its own frame, or None if unsupported.
 
     PhysX conventions: capsules and cylinders run along local x; a plane is x = 0 with normal +x.
@@ -36,7 +36,8 @@ def _local_mesh(shape: sapien.physx.PhysxCollisionShape) -> tuple[np.ndarray, np
     elif isinstance(shape, physx.PhysxCollisionShapeCapsule):
         mesh = o3d.geometry.TriangleMesh.create_cylinder(shape.radius, 2.0 * shape.half_length, _CYLINDER_SEGMENTS)
         for sign in (-1.0, 1.0):
-            mesh += o3d.geometry.TriangleMesh.create_sphere(shape.radius, resolution=12).translate([0, 0, sign * shape.half_length])
+            cap = o3d.geometry.TriangleMesh.create_sphere(shape.radius, resolution=12)
+            mesh += cap.translate([0.0, 0.0, sign * shape.half_length])
         mesh.rotate(_Z_TO_X, center=np.zeros(3))
     elif isinstance(shape, physx.PhysxCollisionShapeCylinder):
         mesh = o3d.geometry.TriangleMesh.create_cylinder(shape.radius, 2.0 * shape.half_length, _CYLINDER_SEGMENTS)
@@ -97,7 +98,7 @@ class RaycastRenderer:
             body = entity.find_component_by_type(sapien.physx.PhysxRigidBaseComponent)
             parts_v, parts_t, offset = [], [], 0
             for shape in body.collision_shapes if body is not None else []:
-                local = _local_mesh(shape)
+                local = collision_shape_mesh(shape)
                 if local is None:
                     continue
                 v, t = local
@@ -145,5 +146,7 @@ class RaycastRenderer:
             seg = np.where(valid, ids[geometry], 0)
             rgb = np.where(valid[:, None], colours[geometry], 0).astype(np.uint8)
             shape = (cam.height, cam.width)
-            frames[cam.name] = CameraFrame(cam.name, xyz.reshape(*shape, 3), rgb.reshape(*shape, 3), seg.reshape(shape).astype(np.int32))
+            frames[cam.name] = CameraFrame(
+                cam.name, xyz.reshape(*shape, 3), rgb.reshape(*shape, 3), seg.reshape(shape).astype(np.int32)
+            )
         return frames

@@ -25,7 +25,7 @@ import numpy as np
 import sapien
 
 from actaim2.robots import RobotSpec, movable_gripper_urdf
-from actaim2.sim.urdf import physics_only_urdf
+from actaim2.sim.urdf import parse_urdf
 
 FINGER_FRICTION = 1.2  # rubber-like finger pads
 
@@ -52,9 +52,7 @@ class SimRobot:
         limits = _urdf_joint_limits(urdf)
         loader = scene.create_urdf_loader()
         loader.fix_root_link = True
-        srdf = str(spec.srdf_path) if spec.srdf_path is not None else None
-        path = urdf if keep_visuals else physics_only_urdf(urdf)
-        builders, actor_builders, _ = loader.parse(str(path), srdf_file=srdf or "")
+        builders, actor_builders, _ = parse_urdf(loader, urdf, spec.srdf_path, keep_visuals=keep_visuals)
         if len(builders) != 1 or actor_builders:
             raise ValueError(f"{spec.urdf_path}: expected a single articulation")
         for lb in builders[0].link_builders:

@@ -15,7 +15,7 @@ from pathlib import Path
 import sapien
 
 from actaim2.robots import RobotSpec
-from actaim2.sim.objects.loader import LoadedObject, load_object
+from actaim2.sim.objects.loader import LoadedObject, load_object, place, recommended_front_distance
 from actaim2.sim.robot import DriveGains, SimRobot
 
 GROUND_FRICTION = 0.8
@@ -56,7 +56,12 @@ class SimScene:
 
     def load_object(self, folder: Path, front_distance: float | None = None, lateral: float = 0.0, yaw: float = 0.0,
                     scale: float = 1.0) -> LoadedObject:
-        """Replace the current object with the one in ``folder`` (see :func:`load_object`)."""
+        """Replace the current object with the one in ``folder`` (see :func:`load_object`); the
+        same object again is only moved (episodes on one object skip the URDF parsing)."""
+        folder = Path(folder)
+        if self.object is not None and self.object.folder == folder and self.object.scale == scale:
+            place(self.object, recommended_front_distance(folder) if front_distance is None else front_distance, lateral, yaw)
+            return self.object
         self.remove_object()
         self.object = load_object(self.scene, folder, front_distance=front_distance, lateral=lateral, yaw=yaw, scale=scale,
                                   keep_visuals=self.render)

@@ -1,24 +1,29 @@
-"""URDF preparation for physics-only scenes.
+"""Parsing a URDF into SAPIEN articulation builders, with or without its visuals.
 
 SAPIEN cannot even parse a URDF visual with a ``<material>`` when no render device exists
 (it creates a render material on the spot), and a physics-only scene cannot hold visual
-shapes anyway. So without a render system the simulator loads a copy of the URDF with the
-``<visual>`` elements removed and every mesh path made absolute (the copy lives in a cache
-folder, not next to the original). The copy is content-addressed and written atomically, so
-concurrent processes share it.
+shapes anyway. So without a render system the loader reads a copy of the URDF with the
+``<visual>`` elements removed and every mesh path made absolute; the copy is a temporary
+file that only lives while SAPIEN parses it (meshes are read later, from their originals).
 """
 from __future__ import annotations
 
-import hashlib
-import os
+import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
+
+import sapien
 
 from actaim2.robots import _resolve_package_uri
 
 
-def physics_only_urdf(urdf_path: Path, package_dirs: tuple[Path, ...] = (), cache_dir: Path | None = None) -> Path:
-    """Path of a visual-free copy of ``urdf_path`` with absolute mesh paths."""
+def parse_urdf(loader: sapien.wrapper.urdf_loader.URDFLoader, urdf_path: Path, srdf_path: Path | None = None,
+               package_dirs: tuple[Path, ...] = (), keep_visuals: bool = True):
+    """``loader.parse`` of ``urdf_path`` (articulation builders, free-body builders, cameras);
+    ``keep_visuals=False`` parses it without visuals (see the module docstring)."""
+    srdf = str(srdf_path) if srdf_path is not None else ""  # "" = no SRDF (SAPIEN would guess a path)
+    if keep_visuals:
+        return loader.parse(str(urdf_path), srdf_file=srdf)
     urdf_path = Path(urdf_path)
     root = ET.parse(urdf_path).getroot()
     for link in root.iter("link"):
@@ -26,14 +31,7 @@ def physics_only_urdf(urdf_path: Path, package_dirs: tuple[Path, ...] = (), cach
             link.remove(visual)
     for mesh in root.iter("mesh"):
         mesh.set("filename", _resolve_package_uri(mesh.get("filename", ""), tuple(package_dirs), urdf_path.parent))
-    text = '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode")
-    digest = hashlib.sha256(text.encode()).hexdigest()[:16]
-    if cache_dir is None:
-        cache_dir = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "actaim2" / "urdf"
-    path = Path(cache_dir) / f"{urdf_path.stem}-physics-{digest}.urdf"
-    if not path.exists():
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(text)
-        os.replace(tmp, path)
-    return path
+    with tempfile.NamedTemporaryFile("w", suffix=".urdf") as copy:
+        copy.write('<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode"))
+        copy.flush()
+        return loader.parse(copy.name, srdf_file=srdf)

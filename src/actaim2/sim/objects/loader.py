@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import sapien
 
-from ..urdf import physics_only_urdf
+from ..urdf import parse_urdf
 from .model import Handle, read_handles, read_meta
 
 DEFAULT_FRONT_DISTANCE = 0.55  # m, for folders whose meta.json does not recommend one
@@ -39,6 +39,7 @@ class LoadedObject:
     lower: np.ndarray
     upper: np.ndarray
     handles: list[Handle]
+    scale: float = 1.0
 
     @property
     def dof_names(self) -> list[str]:
@@ -94,7 +95,7 @@ def load_object(
     loader.scale = scale
     loader.set_density(OBJECT_DENSITY)
     loader.set_material(OBJECT_FRICTION, OBJECT_FRICTION, 0.0)
-    builders, actor_builders, _ = loader.parse(str(urdf if keep_visuals else physics_only_urdf(urdf)))
+    builders, actor_builders, _ = parse_urdf(loader, urdf, keep_visuals=keep_visuals)
     if len(builders) != 1 or actor_builders:
         raise ValueError(f"{urdf}: expected one articulation, got {len(builders)} articulations and {len(actor_builders)} free bodies")
     articulation = builders[0].build()
@@ -109,11 +110,14 @@ def load_object(
     if not np.all(np.isfinite(limits)):
         raise ValueError(f"{urdf}: every movable joint needs finite limits (continuous joints are not supported)")
     obj = LoadedObject(folder, articulation.name, meta.get("model_cat", "unknown"), articulation, joints,
-                       limits[:, 0].copy(), limits[:, 1].copy(), read_handles(folder))
-    if front_distance is None:
-        front_distance = float(meta.get("params", {}).get("front_distance", DEFAULT_FRONT_DISTANCE))
-    place(obj, front_distance, lateral, yaw)
+                       limits[:, 0].copy(), limits[:, 1].copy(), read_handles(folder), scale)
+    place(obj, recommended_front_distance(folder) if front_distance is None else front_distance, lateral, yaw)
     return obj
+
+
+def recommended_front_distance(folder: Path) -> float:
+    """The front distance the object's recipe recommends (meta.json), else the default."""
+    return float(read_meta(folder).get("params", {}).get("front_distance", DEFAULT_FRONT_DISTANCE))
 
 
 def place(obj: LoadedObject, front_distance: float, lateral: float = 0.0, yaw: float = 0.0) -> None:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import open3d as o3d
 
-from actaim2.sim.render_raycast import _local_mesh
+from actaim2.sim.render_raycast import collision_shape_mesh
 
 
 def surface_points(links: list, spacing: float = 0.01) -> np.ndarray:
@@ -18,7 +18,7 @@ def surface_points(links: list, spacing: float = 0.01) -> np.ndarray:
     for link in links:
         T_link = link.entity_pose.to_transformation_matrix()
         for shape in link.collision_shapes:
-            local = _local_mesh(shape)
+            local = collision_shape_mesh(shape)
             if local is None:
                 continue
             mesh = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(local[0]), o3d.utility.Vector3iVector(local[1]))
