@@ -7,6 +7,9 @@ _actaim2_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 
 # DDS stays on loopback: the project default for every process that starts rclpy.
 export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
+# Several nodes share few cores: OpenBLAS spreading a (76800,3)@(3,3) product over threads took
+# 85-100 ms instead of 1 ms under load. One BLAS thread per process (torch keeps its own setting).
+export OPENBLAS_NUM_THREADS="${OPENBLAS_NUM_THREADS:-1}"
 # Fast DDS with a 32 MB shared-memory segment: clouds of a few MB are not dropped (see actaim2/runtime.py).
 export FASTRTPS_DEFAULT_PROFILES_FILE="${FASTRTPS_DEFAULT_PROFILES_FILE:-$_actaim2_root/src/actaim2/config/fastdds.xml}"
 

@@ -69,6 +69,17 @@ def test_swings_a_door_open_and_shut_and_moves_a_faucet_lever(env, expert):
             assert result.moved * task.direction > 0.3
 
 
+def test_expert_on_a_partnet_folder_with_meshes(env, expert, tmp_path):
+    """An object folder with OBJ meshes, reset by path, is manipulated like a catalogue one."""
+    from actaim2.sim.objects import catalog
+
+    folder = catalog.generate("three_drawer_shelf", 0).write_folder(tmp_path / "shelf", meshes=True)
+    info = env.reset(folder=folder, seed=5)
+    assert info.dof_names == ["drawer_0_joint", "drawer_1_joint", "drawer_2_joint"]
+    result = expert.run(ExpertTask("drawer_1_joint", +1))
+    assert result.success, result.message
+
+
 def test_no_handle_annotation_is_a_clear_failure(env, expert, tmp_path):
     from actaim2.sim.objects import catalog
 

@@ -10,8 +10,10 @@ or user-supplied, through one path: SAPIEN's URDF loader on that folder.
 grasped (privileged information for the scripted expert, never a policy input). Objects
 without it can still be simulated, only not driven by the expert.
 
-Object frame convention (the PartNet-Mobility one as used with SAPIEN): z up, the object's
-front faces -x, origin at the centre of its footprint on the floor.
+Object frame convention: z up, the object's front faces -x, origin at the centre of its
+footprint on the floor. Folders from elsewhere are assumed to face -x too (as PartNet-Mobility
+objects are commonly loaded with SAPIEN); one facing another way is turned with the loader's
+``yaw``.
 """
 from __future__ import annotations
 
