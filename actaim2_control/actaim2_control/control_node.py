@@ -69,7 +69,8 @@ PARAMETERS = {
     "table_height": (_WS.table_height, "m, world z of the support plane no link may go below"),
     "workspace_min": (list(_WS.box_min), "m, world: lower corner of the safety box every moving link stays in"),
     "workspace_max": (list(_WS.box_max), "m, world: upper corner of the safety box"),
-    "use_cloud": (False, "also avoid the fused cloud (INIT and REACH), except near the grasp point"),
+    "use_cloud": (False, "also avoid the fused cloud (INIT and REACH), except near the grasp point; "
+                         "the cloud must be free of robot points (fusion_node remove_robot_fused: true)"),
     "cloud_topic": ("/fused_points", "PointCloud2 in world used when use_cloud is true"),
     "cloud_clearance": (_PLAN.cloud_clearance, "m: cloud points this close to the grasp point are not obstacles"),
     "approach_distance": (_PLAN.approach_distance, "m: straight last REACH segment when the arm starts off the approach axis"),
@@ -113,6 +114,7 @@ class ControlNode(Node):
         self._runner = KeyposeRunner(self._planner, self._executor)
         self._busy = threading.Lock()
         self._keypose_pub = self.create_publisher(KeyposeMsg, "/keypose", KEYPOSE_QOS)
+        self._cloud_topic, self._have_cloud = p["cloud_topic"], False
         if p["use_cloud"]:
             self.create_subscription(PointCloud2, p["cloud_topic"], self._on_cloud, qos_profile_sensor_data, callback_group=group)
         self._server = ActionServer(
@@ -134,7 +136,11 @@ class ControlNode(Node):
         except CloudFormatError as exc:
             self.get_logger().warning(f"unreadable cloud: {exc}", throttle_duration_sec=10.0)
             return
-        self._planner.set_cloud(xyz[np.all(np.isfinite(xyz), axis=1)])
+        points = xyz[np.all(np.isfinite(xyz), axis=1)]
+        if not self._have_cloud:
+            self.get_logger().info(f"obstacle cloud from {self._cloud_topic}: {len(points)} points (kept up to date)")
+            self._have_cloud = True
+        self._planner.set_cloud(points)
 
     def _check_goal(self, goal: ExecuteKeypose.Goal) -> str:
         """What is wrong with a goal ("" when nothing)."""

@@ -146,8 +146,7 @@ def movable_gripper_urdf(spec: RobotSpec, cache_dir: Path | None = None) -> Path
     fingers are. Each gripper joint declared `fixed` becomes `revolute` with the `<limit>`
     the URDF already writes for it. Mesh references (``package://``, relative) become
     absolute file paths, so SAPIEN, Pinocchio and Open3D load the file without package
-    resolution. The result is content-addressed in ``cache_dir`` (default
-    ``$XDG_CACHE_HOME/actaim2/urdf``) and written atomically, so concurrent processes share it.
+    resolution. Written once per content (:func:`write_cached_urdf`).
     """
     root = ET.parse(spec.urdf_path).getroot()
     for joint in root.findall("joint"):
@@ -158,15 +157,22 @@ def movable_gripper_urdf(spec: RobotSpec, cache_dir: Path | None = None) -> Path
             joint.set("type", "revolute")
     for mesh in root.iter("mesh"):
         mesh.set("filename", _resolve_package_uri(mesh.get("filename", ""), spec.package_dirs, spec.urdf_path.parent))
-    text = ET.tostring(root, encoding="unicode")
+    return write_cached_urdf(root, spec.name, cache_dir)
+
+
+def write_cached_urdf(root: ET.Element, stem: str, cache_dir: Path | None = None) -> Path:
+    """Write a rewritten URDF once, named by its content: ``<cache_dir>/<stem>-<hash>.urdf``
+    (default cache ``$XDG_CACHE_HOME/actaim2/urdf``), atomically, so concurrent processes
+    writing the same content share one file and never read a half-written one."""
+    text = '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode")
     digest = hashlib.sha256(text.encode()).hexdigest()[:16]
     if cache_dir is None:
         cache_dir = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "actaim2" / "urdf"
-    path = Path(cache_dir) / f"{spec.name}-{digest}.urdf"
+    path = Path(cache_dir) / f"{stem}-{digest}.urdf"
     if not path.exists():
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text('<?xml version="1.0"?>\n' + text)
+        tmp.write_text(text)
         os.replace(tmp, path)
     return path
 

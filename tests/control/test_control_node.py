@@ -128,7 +128,7 @@ def start_cell(start_node, ros_node, control_params: dict | None = None):
     recorder, client = Recorder(ros_node), KeyposeClient(ros_node)
     assert client.client.wait_for_server(timeout_sec=30.0), control.output()
     assert wait_for(lambda: len(recorder.joints) > 5, 30.0), "no /joint_states from the sim"
-    return recorder, client
+    return recorder, client, control
 
 
 def test_malformed_goals_are_rejected_with_a_message(start_node, ros_node):
@@ -156,7 +156,7 @@ def test_malformed_goals_are_rejected_with_a_message(start_node, ros_node):
 def test_four_phase_drawer_pull_through_the_sim(start_node, ros_node, panda, drawer):
     from action_msgs.msg import GoalStatus
 
-    recorder, client = start_cell(start_node, ros_node)
+    recorder, client, _ = start_cell(start_node, ros_node)
     assert wait_for(lambda: drawer["joint"] in recorder.object, 10.0)
     dof_before = recorder.object[drawer["joint"]]
     T = drawer["T"]
@@ -192,7 +192,7 @@ def test_four_phase_drawer_pull_through_the_sim(start_node, ros_node, panda, dra
 def test_cancel_stops_the_arm_within_half_a_second(start_node, ros_node, panda):
     from action_msgs.msg import GoalStatus
 
-    recorder, client = start_cell(start_node, ros_node)
+    recorder, client, _ = start_cell(start_node, ros_node)
     moving = threading.Event()
     # a long, slow joint-space move: home -> far to the left and down
     handle = client.send(client.goal(0, [0.3, 0.45, 0.25], DOWN_QUAT, False, scaling=0.15),
@@ -213,12 +213,32 @@ def test_cancel_stops_the_arm_within_half_a_second(start_node, ros_node, panda):
     assert still[-10:].all()
 
 
-def test_jtc_topic_fallback_when_the_action_is_absent(start_node, ros_node, panda):
+def test_topic_fallback_and_cloud_obstacles(start_node, ros_node, panda):
+    """Without the arm's action server the JTC topic moves the arm; with use_cloud a /fused_points
+    plate over one target makes it unreachable, with the reason."""
     from action_msgs.msg import GoalStatus
+    from rclpy.qos import qos_profile_sensor_data
+    from sensor_msgs.msg import PointCloud2
 
-    recorder, client = start_cell(start_node, ros_node, {"arm_action": "/no_such_controller/follow_joint_trajectory", "server_wait": 0.5})
-    position = [0.4, -0.1, 0.35]
+    from actaim2_perception.pointcloud2 import to_msg
+
+    recorder, client, control = start_cell(start_node, ros_node, {
+        "arm_action": "/no_such_controller/follow_joint_trajectory", "server_wait": 0.5, "use_cloud": True})
+    g = np.linspace(-0.1, 0.1, 21)
+    plate = np.stack(np.meshgrid(0.55 + g, g), -1).reshape(-1, 2)  # 20 cm square, 40 cm high
+    cloud = to_msg(np.column_stack([plate, np.full(len(plate), 0.40)]).astype(np.float32), frame_id="world")
+    publisher = ros_node.create_publisher(PointCloud2, "/fused_points", qos_profile_sensor_data)
+    timer = ros_node.create_timer(0.1, lambda: publisher.publish(cloud))
+    assert wait_for(lambda: "obstacle cloud" in control.output(), 20.0), control.output()
+
+    under_the_plate = [0.55, 0.0, 0.25]  # the wrist would go through the plate
+    status, result = client.execute(client.goal(0, under_the_plate, DOWN_QUAT, False))
+    assert status == GoalStatus.STATUS_ABORTED and not result.success
+    assert "environment_collision" in result.message and "point cloud" in result.message, result.message
+
+    position = [0.3, -0.35, 0.35]
     status, result = client.execute(client.goal(0, position, DOWN_QUAT, False))
     assert status == GoalStatus.STATUS_SUCCEEDED and result.success, result.message
     position_error, orientation_error = tcp_error(panda, recorder, position, DOWN_QUAT)
     assert position_error <= 0.005 and orientation_error <= np.radians(3.0)
+    timer.cancel()

@@ -56,7 +56,8 @@ class Motion:
 
 class PlanningError(RuntimeError):
     """A keypose that cannot be executed; ``reason`` is machine-readable (an IKFailure value,
-    "path_collision", "straight_line" or "trajectory"), the message says the details."""
+    also for collisions along the trajectory, "straight_line", "trajectory" or "invalid"),
+    the message says the details."""
 
     def __init__(self, reason: str, message: str):
         super().__init__(message)
@@ -95,7 +96,7 @@ class KeyposePlanner:
             elif phase == REACH:
                 segments, deviation = self._reach(T_goal, start, limits, rng)
             else:
-                segments, deviation = self._line(self.robot.fk(start.position), T_goal, start.position, False, limits, start)
+                segments, deviation = self._line_from(start.position, T_goal, limits)
         except LineError as exc:
             raise PlanningError("straight_line", f"{PHASE_NAMES[phase]}: straight line refused: {exc}") from exc
         except TrajectoryError as exc:
@@ -125,23 +126,25 @@ class KeyposePlanner:
         turn = Rotation.from_matrix(T_now[:3, :3].T @ T_goal[:3, :3]).magnitude()
         if behind @ approach >= 0.0 and lateral <= opts.on_axis_tolerance and turn <= np.radians(2.0):
             try:
-                return self._line(T_now, T_goal, start.position, False, limits, start)
+                return self._line_from(start.position, T_goal, limits)
             except LineError:
                 pass  # the arm's current branch runs into a limit on the way: come in on another one
         goal = self._ik(T_goal, start.position, rng)
         T_pre = T_goal.copy()
         T_pre[:3, 3] -= opts.approach_distance * approach
         path = solve_line(self.ik, T_pre, T_goal, goal, anchor_at_end=True, step=opts.line_step,
-                          max_joint_step=opts.max_joint_step, use_cloud=True)
+                          max_joint_step=opts.max_joint_step, use_cloud=self.checker.has_cloud)
         line = LineSegment(path, limits, entry_speed_fraction=opts.via_speed_fraction)
         via = line.entry_state()
         return [self._joint_segment(start, via.position, limits, via), line], path.deviation(self.robot)[0]
 
-    def _line(self, T_start, T_goal, anchor, anchor_at_end: bool, limits: Limits, start: State) -> tuple[list[Segment], float]:
+    def _line_from(self, angles: np.ndarray, T_goal: np.ndarray, limits: Limits) -> tuple[list[Segment], float]:
+        """A straight tcp line from where the joints ``angles`` put it to ``T_goal``."""
         opts = self.options
+        T_start = self.robot.fk(angles)
         if np.linalg.norm(T_goal[:3, 3] - T_start[:3, 3]) < 1e-4 and Rotation.from_matrix(T_start[:3, :3].T @ T_goal[:3, :3]).magnitude() < 1e-3:
             return [], 0.0  # already there
-        path = solve_line(self.ik, T_start, T_goal, anchor, anchor_at_end, step=opts.line_step,
+        path = solve_line(self.ik, T_start, T_goal, angles, anchor_at_end=False, step=opts.line_step,
                           max_joint_step=opts.max_joint_step, use_cloud=self.checker.has_cloud)
         return [LineSegment(path, limits)], path.deviation(self.robot)[0]
 

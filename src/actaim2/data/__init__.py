@@ -1,19 +1,24 @@
 """Self-supervised data collection (paper appendix "Dataset Generation", Algorithm 1).
 
-Modules, one job each:
-  trajectory      in-memory records: keyposes, multi-camera RGB-D observations, trajectories
-  storage         the on-disk dataset (tar chunks of PNG/JSON members + index.jsonl)
-  splits          seen / unseen-instance / held-out-category splits (never by trajectory)
-  torch_dataset   PyTorch Datasets over a stored dataset
-  stats           success per category and sampler, outcome diversity (`actaim2 stats`)
-  vgg             VGG-19 `features` stack that loads a user's torchvision weight file
-  encoder         the image encoder E over camera views, and the project's self-trained default
-  success         task embedding z = E(O_init) - E(O_final), score, threshold calibration
-  object_cloud    object points from the cameras (crop, support-plane removal), no robot, no state
-  gripper         parallel-gripper volume for geometric collision filtering
-  random_sampler  random action sequences (appendix "Random Sampling")
-  grasp           pluggable grasp proposers; the geometric antipodal one
-  grasp_sampler   heuristic grasp sampling (appendix "Heuristic Grasping Sampling")
-  gmm_sampler     GMM-adaptive sampling (appendix "GMM-based Adaptive Sampling")
-  collect         the collection loop: worker processes, resume, progress (`actaim2 collect`)
+Modules, one job each (docs/data_collection.md tells the whole story):
+  trajectory        in-memory records: keyposes, multi-camera RGB-D observations, object state
+  actions           the four-keypose action primitive every sampler returns; the Sampler protocol
+  object_cloud      object points from the cameras (fusion, support and face removal, DBSCAN parts)
+  gripper           the open hand as boxes, for geometric collision checks against a cloud
+  random_sampler    random sampling (appendix "1. Random Sampling")
+  grasp             pluggable grasp proposers; the geometric antipodal one
+  grasp_sampler     heuristic grasp sampling (appendix "2. Heuristic Grasping Sampling")
+  gmm_sampler       GMM-adaptive sampling (appendix "3. GMM-based Adaptive Sampling")
+  vgg               VGG-19 `features` stack that loads a user's torchvision weight file
+  encoder           the image encoder E over camera pictures, and the default autoencoder
+  encoder_training  self-supervised training of the default encoder
+  success           score of z, threshold calibration, labelling metrics
+  labelling         embeds a stored dataset, calibrates, writes visual labels
+  storage           the on-disk dataset (tar chunks of PNG/JSON members + index.jsonl)
+  splits            the catalogue's splits by instance and category, leak check
+  torch_dataset     PyTorch Datasets: (O_i, a_i, z) keyframes and (O_init, z) pairs
+  collect           the collection loop: worker processes, resume, progress
+  stats             success per category and sampler, outcome diversity, size, speed
+  collect_cli       `actaim2 collect`
+  stats_cli         `actaim2 stats`
 """

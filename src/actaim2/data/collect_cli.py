@@ -33,7 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--render-path", default="auto", choices=["auto", "sapien", "raycast"])
     parser.add_argument("--encoder", type=Path, help="a saved encoder E (ImageEncoder.save); default: train one on the data")
     parser.add_argument("--vgg19-weights", type=Path, help="torchvision VGG-19 state_dict file: use VGG-19 as E")
-    parser.add_argument("--encoder-steps", type=int, default=1500, help="training steps of the default encoder")
+    parser.add_argument("--encoder-steps", type=int, default=800, help="training steps of the default encoder")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 

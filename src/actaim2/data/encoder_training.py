@@ -18,7 +18,7 @@ from actaim2.data.encoder import ConvAutoencoder, ImageEncoder
 
 def train_autoencoder(
     data: torch.Tensor,
-    steps: int = 1500,
+    steps: int = 800,
     batch_size: int = 32,
     lr: float = 2e-3,
     seed: int = 0,

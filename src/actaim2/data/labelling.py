@@ -35,7 +35,7 @@ def encoder_digest(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
 
 
-def fit_default_encoder(reader: DatasetReader, max_trajectories: int = 150, steps: int = 1500, seed: int = 0,
+def fit_default_encoder(reader: DatasetReader, max_trajectories: int = 150, steps: int = 800, seed: int = 0,
                         show_progress: bool = True) -> tuple[ImageEncoder, list[float]]:
     """Train the autoencoder E on O_init and O_final of (up to) ``max_trajectories`` training trajectories."""
     train = [e for e in reader.entries if e["split"] == TRAIN]

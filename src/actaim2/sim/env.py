@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
@@ -25,6 +25,10 @@ from actaim2.sim.objects.loader import LoadedObject, recommended_front_distance
 from actaim2.sim.robot import DriveGains, SimRobot
 from actaim2.sim.scene import SimScene
 from actaim2.sim.success import SUCCESS_FRACTION, dof_success
+
+if TYPE_CHECKING:
+    from actaim2.sim.observe import Observation
+    from actaim2.sim.sensor_noise import SensorNoise
 
 # Where objects stand (world): the point the camera rig looks at. Objects are placed with
 # their front 0.42-0.7 m before the robot, so their centres lie within ~0.2 m of this point.
@@ -60,7 +64,7 @@ class SimEnv:
         camera_size: tuple[int, int] = (0, 0),
         cache_dir: Path | None = None,
         gains: DriveGains = DriveGains(),
-        noise=None,
+        noise: "SensorNoise | None" = None,
     ):
         """``cameras``: a rig name of :mod:`actaim2.sim.cameras` (``ring5``, ``azure_kinect``) or
         None for physics only. ``render_path``: ``auto``, ``sapien`` or ``raycast``
@@ -222,7 +226,7 @@ class SimEnv:
         return dof_success(initial, self.object_dof(), self.object.lower, self.object.upper, fraction)
 
     # -- observation --------------------------------------------------------------------------
-    def observe(self, with_robot: bool = True):
+    def observe(self, with_robot: bool = True) -> "Observation":
         """Every camera's RGB-D frame (:class:`actaim2.sim.observe.Observation`); with
         ``with_robot=False`` the robot is neither drawn nor occludes (the paper's O_init / O_final)."""
         if self.rig is None:

@@ -185,12 +185,11 @@ class ScriptedExpert:
             moves = [_part_motion("prismatic", axis, origin, -d) for d in np.linspace(0.0, travel, int(np.ceil(travel / 0.01)) + 1)]
         else:
             offsets = [None]
-            step = 0.01 if joint.type == "prismatic" else np.deg2rad(3.0)
-            qs = np.linspace(q_now, q_goal, max(2, int(np.ceil(abs(q_goal - q_now) / step)) + 1))
+            qs = _dof_path(joint.type, q_now, q_goal)
             moves = [_part_motion(joint.type, axis, origin, q - q_now) for q in qs]
             # where the arm cannot follow the whole way, going this far still moves the part enough
-            span = float(joint.limit[0][1] - joint.limit[0][0])
-            required = int(np.argmax(np.abs(qs - q_now) >= MIN_PROGRESS * span)) + 1 if np.abs(qs[-1] - q_now) >= MIN_PROGRESS * span else None
+            enough = np.abs(qs - q_now) >= MIN_PROGRESS * float(joint.limit[0][1] - joint.limit[0][0])
+            required = int(np.argmax(enough)) + 1 if enough[-1] else None
         errors = []
         for rx, ry in np.deg2rad(TILTS.get(handle.kind, [(0, 0)])):
             for flip in (np.eye(4), FLIP):
@@ -231,10 +230,8 @@ class ScriptedExpert:
         obj = self.env.object
         q_now = float(obj.qpos()[i])
         T_axis = joint.get_global_pose().to_transformation_matrix()
-        step = 0.01 if joint.type == "prismatic" else np.deg2rad(3.0)
-        qs = np.linspace(q_now, q_goal, max(2, int(np.ceil(abs(q_goal - q_now) / step)) + 1))
         tcp = self.env.tcp_pose()
-        path = [_part_motion(joint.type, T_axis[:3, 0], T_axis[:3, 3], q - q_now) @ tcp for q in qs]
+        path = [_part_motion(joint.type, T_axis[:3, 0], T_axis[:3, 3], q - q_now) @ tcp for q in _dof_path(joint.type, q_now, q_goal)]
         target = planned.poses[-1]  # go no shorter than planned
         required = int(np.argmin([np.linalg.norm(T[:3, 3] - target[:3, 3]) for T in path])) + 1
         try:
@@ -247,17 +244,16 @@ class ScriptedExpert:
         there sweeps the least), then others from random seeds, largest margin to the joint
         limits first (paths from there rarely run into a limit)."""
         model = self._ik_local.robot
-        found = []
+        nearest, others = [], []
         for k in range(seeds):
             seed = self.env.robot.arm_positions() if k == 0 else model.random_angles(self._rng)
             result = self._ik_local.solve(T, seed, rng=self._rng, use_cloud=True)
-            if result.success and all(np.abs(result.angles - q).max() > 0.2 for q in found):
-                found.append(result.angles)
+            if result.success and all(np.abs(result.angles - q).max() > 0.2 for q in nearest + others):
+                (nearest if k == 0 else others).append(result.angles)
         bounded = np.isfinite(model.lower) & np.isfinite(model.upper)
         lo, hi = model.lower[bounded], model.upper[bounded]
-        margin = [float(np.min(np.minimum(q[bounded] - lo, hi - q[bounded]) / (hi - lo))) for q in found]
-        near = found[:1] if found and np.abs(found[0] - self.env.robot.arm_positions()).max() < np.pi else []
-        return (near + [found[k] for k in np.argsort(margin)[::-1] if found[k] is not (near[0] if near else None)])[:keep]
+        others.sort(key=lambda q: float(np.min(np.minimum(q[bounded] - lo, hi - q[bounded]) / (hi - lo))), reverse=True)
+        return (nearest + others)[:keep]
 
     def _solve(self, T: np.ndarray, seed: np.ndarray, solver: IKSolver) -> np.ndarray:
         result = solver.solve(T, seed, rng=self._rng, use_cloud=False)
@@ -355,6 +351,12 @@ def _translate(x: float, y: float, z: float) -> np.ndarray:
     T = np.eye(4)
     T[:3, 3] = (x, y, z)
     return T
+
+
+def _dof_path(joint_type: str, q_from: float, q_to: float) -> np.ndarray:
+    """DoF values from ``q_from`` to ``q_to``, 1 cm or 3 degrees apart: the manipulation's waypoints."""
+    step = 0.01 if joint_type == "prismatic" else np.deg2rad(3.0)
+    return np.linspace(q_from, q_to, max(2, int(np.ceil(abs(q_to - q_from) / step)) + 1))
 
 
 def _rotate(axis: str, angle: float) -> np.ndarray:
