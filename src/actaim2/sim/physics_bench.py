@@ -6,13 +6,10 @@ Three workloads, each timed on wall-clock time around the physics loop only:
                     (what FollowJointTrajectory does), in free space;
   * ``manipulate``  the scripted expert pulls a drawer open and pushes it shut (contacts,
                     friction grasp); its IK planning is not timed.
-``actaim2 bench sim`` reports these rows next to the camera timings; standalone:
-``python -m actaim2.sim.physics_bench``.
+``actaim2 bench sim`` reports these rows next to the camera timings.
 """
 from __future__ import annotations
 
-import argparse
-import sys
 import time
 
 import numpy as np
@@ -68,11 +65,3 @@ def markdown(rows: list[dict]) -> str:
         lines.append(f"| {r['workload']} | {r['sim_s']:.1f} | {r['wall_s']:.2f} | {r['steps_per_s']:.0f} | {r['real_time_factor']:.1f}x |")
     return "\n".join(lines)
 
-
-if __name__ == "__main__":
-    parser = argparse.ArgumentParser(prog="python -m actaim2.sim.physics_bench", description=__doc__.splitlines()[0])
-    parser.add_argument("--robot", default="panda")
-    parser.add_argument("--seconds", type=float, default=5.0, help="simulated seconds of the hold and trajectory workloads")
-    args = parser.parse_args()
-    print(markdown(run_physics_bench(args.robot, args.seconds)))
-    sys.exit(0)
