@@ -35,6 +35,7 @@ from actaim2.control.trajectory import JointPlanner, JointTrajectory, Limits, St
 from actaim2.robots import RobotSpec
 
 POLL = 0.01  # s between checks while waiting
+FEEDBACK_PERIOD = 0.1  # s between progress reports while the arm moves
 
 
 @dataclass(frozen=True)
@@ -124,15 +125,18 @@ class RosExecutor:
             self._topic.publish(msg)
             end_of_motion = time.monotonic() + trajectory.duration
             done = lambda: time.monotonic() >= end_of_motion  # noqa: E731 (no result on the topic)
-        start = time.monotonic()
+        start = reported = time.monotonic()
         deadline = start + trajectory.duration * s.timeout_factor + s.timeout_margin
         while not done():
             if self.cancel_requested():
                 return self._stop()
-            if time.monotonic() > deadline:
+            now = time.monotonic()
+            if now > deadline:
                 self._stop()
                 return StepResult(False, f"no result from {s.arm_action} within {deadline - start:.1f} s")
-            on_progress(min(1.0, (time.monotonic() - start) / max(trajectory.duration, 1e-6)))
+            if now - reported >= FEEDBACK_PERIOD:
+                on_progress(min(1.0, (now - start) / max(trajectory.duration, 1e-6)))
+                reported = now
             time.sleep(POLL)
         if use_action:
             result = result_future.result().result

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from actaim2.data.success import calibrate_threshold, label_metrics, score
+from actaim2.data.success import calibrate_threshold, change, label_metrics, relative_score
 from actaim2.data.trajectory import ObjectState, ground_truth_success
 
 
@@ -17,9 +17,13 @@ def test_threshold_separates_and_matches_brute_force():
     assert label_metrics(np.array([0.1, 0.2, 0.9]), np.array([False, False, True]), calibrate_threshold([0.1, 0.2, 0.9], [False, False, True]))["accuracy"] == 1.0
 
 
-def test_score_is_rms_of_z():
+def test_change_is_rms_of_z_and_the_score_is_relative_to_the_object():
     z = np.array([[3.0, 4.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]])
-    np.testing.assert_allclose(score(z), [2.5, 0.0])
+    np.testing.assert_allclose(change(z), [2.5, 0.0])
+    changes = np.array([0.01, 0.02, 0.10, 1.0, 2.0, 10.0])  # a switch's toggle and a door: different scales
+    objects = np.array(["switch"] * 3 + ["door"] * 3)
+    rel = relative_score(changes, objects, percentile=100.0)
+    np.testing.assert_allclose(rel, [0.1, 0.2, 1.0, 0.1, 0.2, 1.0])
 
 
 def test_ground_truth_is_thirty_percent_of_the_range():

@@ -28,7 +28,7 @@ class GMMConfig:
     max_clusters: int = 4  # K: interaction modes per object at most
     max_action_components: int = 3  # L: Gaussians per cluster over action sequences
     pca_dims: int = 8
-    min_successes: int = 6  # fewer visually successful trajectories: cluster all of them
+    min_successes: int = 3  # fewer visually successful trajectories: cluster all of them
     points_per_component: int = 4  # a mixture component needs at least this many trajectories
     reg_covar: float = 1e-4
 

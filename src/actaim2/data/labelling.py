@@ -3,7 +3,7 @@
 Files written next to the dataset's index:
   encoder.pt        the default encoder E, trained on this dataset's training split (if not given)
   embeddings.npz    ids, task embeddings z (float32) and the digest of the encoder that made them
-  labels.jsonl      {id, score, success} per trajectory (read by DatasetReader as entry["label"])
+  labels.jsonl      {id, score, change, success} per trajectory (read by DatasetReader as entry["label"])
   labelling.json    threshold, score definition, and labelling accuracy per split
 
 The threshold is calibrated on the calibration split (default: training split) and the accuracy
@@ -24,7 +24,7 @@ from actaim2.data.encoder import AUTOENCODER_SPEC, ImageEncoder
 from actaim2.data.encoder_training import train_autoencoder
 from actaim2.data.splits import TRAIN
 from actaim2.data.storage import DatasetReader, write_labels
-from actaim2.data.success import calibrate_threshold, label_metrics, score
+from actaim2.data.success import OBJECT_PERCENTILE, calibrate_threshold, change, label_metrics, relative_score
 
 ENCODER_FILE = "encoder.pt"
 EMBEDDINGS_FILE = "embeddings.npz"
@@ -91,22 +91,32 @@ def label_dataset(root: str | Path, encoder_path: str | Path, calibration_split:
     encoder = ImageEncoder.load(encoder_path)
     z = embed_dataset(reader, encoder, encoder_digest(encoder_path), show_progress)
     ids = [e["id"] for e in reader.entries]
-    scores = score(np.stack([z[i] for i in ids]))
+    changes = change(np.stack([z[i] for i in ids]))
+    scores = relative_score(changes, np.array([e["object_id"] for e in reader.entries]))
     gt = np.array([e["gt_success"] for e in reader.entries], dtype=bool)
     splits = np.array([e["split"] for e in reader.entries])
     calib = splits == calibration_split
     if not calib.any():
         raise ValueError(f"no trajectories in calibration split {calibration_split!r}")
+
+    def metrics(values: np.ndarray, threshold: float) -> dict:
+        return {
+            "threshold": threshold,
+            "per_split": {s: label_metrics(values[splits == s], gt[splits == s], threshold) for s in sorted(set(splits))},
+            "other_splits": label_metrics(values[~calib], gt[~calib], threshold) if (~calib).any() else None,
+        }
+
     threshold = calibrate_threshold(scores[calib], gt[calib])
-    write_labels(root, [{"id": i, "score": float(s), "success": bool(s > threshold)} for i, s in zip(ids, scores)])
+    write_labels(root, [{"id": i, "score": float(s), "change": float(c), "success": bool(s > threshold)}
+                        for i, s, c in zip(ids, scores, changes)])
     report = {
         "encoder": str(encoder_path),
         "encoder_kind": encoder.spec.kind,
-        "score": "rms(z) = ||z|| / sqrt(dim z)",
-        "threshold": threshold,
+        "score": f"rms(z) / p{OBJECT_PERCENTILE:g} of rms(z) over the object's trajectories",
         "calibration_split": calibration_split,
-        "per_split": {s: label_metrics(scores[splits == s], gt[splits == s], threshold) for s in sorted(set(splits))},
-        "other_splits": label_metrics(scores[~calib], gt[~calib], threshold) if (~calib).any() else None,
+        **metrics(scores, threshold),
+        # For comparison, the paper's literal criterion: one threshold on the change itself.
+        "absolute_change": metrics(changes, calibrate_threshold(changes[calib], gt[calib])),
     }
     (Path(root) / REPORT_FILE).write_text(json.dumps(report, indent=2))
     return report

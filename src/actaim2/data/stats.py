@@ -86,12 +86,14 @@ def throughput_table(root: Path) -> str:
 
 
 def labelling_table(report: dict) -> str:
-    lines = [f"threshold {report['threshold']:.4g} on {report['score']}, calibrated on split '{report['calibration_split']}'", "",
-             "| split | trajectories | successes (gt) | accuracy | balanced accuracy | precision | recall |", "|---|---|---|---|---|---|---|"]
-    rows = dict(report["per_split"])
-    if report.get("other_splits"):
-        rows["all but calibration"] = report["other_splits"]
-    for name, m in rows.items():
-        lines.append(f"| {name} | {m['n']} | {m['positives']} | {100 * m['accuracy']:.1f}% | {100 * m['balanced_accuracy']:.1f}% | "
-                     f"{100 * m['precision']:.1f}% | {100 * m['recall']:.1f}% |")
+    lines = [f"score: {report['score']}; threshold {report['threshold']:.4g} calibrated on split '{report['calibration_split']}'", "",
+             "| score | split | trajectories | successes (gt) | accuracy | balanced accuracy | precision | recall |",
+             "|---|---|---|---|---|---|---|---|"]
+    for name, part in (("relative (used)", report), ("absolute change", report["absolute_change"])):
+        rows = dict(part["per_split"])
+        if part.get("other_splits"):
+            rows["all but calibration"] = part["other_splits"]
+        for split, m in rows.items():
+            lines.append(f"| {name} | {split} | {m['n']} | {m['positives']} | {100 * m['accuracy']:.1f}% | "
+                         f"{100 * m['balanced_accuracy']:.1f}% | {100 * m['precision']:.1f}% | {100 * m['recall']:.1f}% |")
     return "\n".join(lines)
