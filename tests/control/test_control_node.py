@@ -18,11 +18,7 @@ from actaim2.robots import load_robot_spec
 from conftest import wait_for
 
 SCENE = {"category": "table", "instance": 0, "seed": 0}
-SIM_PARAMS = {
-    "robot": "panda", "camera_rate": 0.0, "render_path": "raycast", **SCENE,
-    # PhysX reports ~2e-3 rad/s on fingers squeezing a handle: count that as stalled
-    "gripper_stall_velocity": 0.01,
-}
+SIM_PARAMS = {"robot": "panda", "camera_rate": 0.0, "render_path": "raycast", **SCENE}
 DOWN_QUAT = [1.0, 0.0, 0.0, 0.0]  # tcp pointing down (x, y, z, w)
 
 

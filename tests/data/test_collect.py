@@ -10,12 +10,10 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
-import pytest
 
-from actaim2.data.collect import CollectConfig, TrajectoryCollector, _tasks, collect
+from actaim2.data.collect import CollectConfig, TrajectoryCollector, collect, stage_tasks
 from actaim2.data.storage import MAX_TRAJECTORY_BYTES, DatasetReader, decode_trajectory
 from actaim2.data.torch_dataset import KeyframeDataset, ModeDataset
 from actaim2.data.trajectory import OBSERVATION_NAMES
@@ -64,10 +62,10 @@ def test_tiny_collection_end_to_end(tmp_path, capsys):
     assert "Success rate per category and sampler" in printed and "storage_furniture" in printed
 
 
-def test_a_trajectory_is_determined_by_its_seed(tmp_path):
+def test_a_task_run_again_gives_the_same_trajectory(tmp_path):
     config = CollectConfig(out=tmp_path, objects=(OBJECT,), per_object={"random": 1}, workers=0, show_progress=False)
     collector = TrajectoryCollector(config)
-    task = _tasks(config, "random", range(1))[0]
+    task = stage_tasks(config, "random", range(1))[0]
     first, second = collector.run(task), collector.run(task)
     a, b = decode_trajectory(dict(first.members)), decode_trajectory(dict(second.members))
     for ka, kb in zip(a.keyposes, b.keyposes):

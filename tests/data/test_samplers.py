@@ -63,7 +63,9 @@ def test_random_sampler_respects_reach_and_collisions(door_with_handle):
         assert a is not None
         assert all(config.reachable(p) for p in (a.p0, a.p1, a.p2))
         assert config.manipulation_min - 1e-9 <= np.linalg.norm(a.p2 - a.p1) <= config.manipulation_max + 1e-9
-        assert not collides(config.gripper, door_with_handle.points, a.T_world_tcp(), config.collision_tolerance)
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = a.R0, a.p1
+        assert not collides(config.gripper, door_with_handle.points, T, config.collision_tolerance)
         np.testing.assert_allclose(a.R0 @ a.R0.T, np.eye(3), atol=1e-9)
 
 

@@ -16,8 +16,6 @@ from scipy.spatial.transform import Rotation
 from actaim2.data.object_cloud import ObjectCloud
 from actaim2.data.trajectory import Keypose
 
-ACTION_VECTOR_DIM = 13  # p1 (3), p2 - p1 (3), first two columns of R0 (6), start distance (1)
-
 
 @dataclass
 class ActionSequence:
@@ -40,14 +38,8 @@ class ActionSequence:
             Keypose(3, np.asarray(self.p2, float), q, True),
         ]
 
-    def T_world_tcp(self) -> np.ndarray:
-        """Pose of the tcp at the interaction point."""
-        T = np.eye(4)
-        T[:3, :3], T[:3, 3] = self.R0, self.p1
-        return T
-
     def vector(self) -> np.ndarray:
-        """Continuous encoding for density models (GMM): positions, 6-D rotation, distance."""
+        """13-D encoding for density models (GMM): p1, p2 - p1, first two columns of R0, start distance."""
         R = np.asarray(self.R0)
         return np.concatenate([self.p1, np.asarray(self.p2) - self.p1, R[:, 0], R[:, 1], [self.start_distance]])
 

@@ -48,7 +48,7 @@ from actaim2.control.sim_executor import SimEnvExecutor
 from actaim2.data.actions import ActionSequence, Sampler
 from actaim2.data.gmm_sampler import GMMAdaptiveSampler, GMMConfig
 from actaim2.data.grasp_sampler import HeuristicGraspSampler
-from actaim2.data.labelling import EMBEDDINGS_FILE, ENCODER_FILE, fit_default_encoder, label_dataset
+from actaim2.data.labelling import EMBEDDINGS_FILE, ENCODER_FILE, fit_default_encoder, label_dataset, visual_labels
 from actaim2.data.object_cloud import CloudConfig, object_cloud
 from actaim2.data.random_sampler import RandomSampler, SamplingConfig
 from actaim2.data.splits import TRAIN, check_no_leak, split_of
@@ -56,6 +56,7 @@ from actaim2.data.stats import RUNS_FILE
 from actaim2.data.storage import DatasetReader, DatasetWriter, EncodedTrajectory, encode_trajectory, trajectory_id
 from actaim2.data.trajectory import CameraImage, ObjectState, Observation, Trajectory
 from actaim2.sim.env import WORKSPACE_CENTER, SimEnv
+from actaim2.sim.objects.catalog import object_id
 
 EXPLORE_SAMPLERS = ("random", "grasp")
 SAMPLER_CODES = {"random": 1, "grasp": 2, "gmm": 3}
@@ -134,7 +135,7 @@ class TrajectoryCollector:
             result = self._attempt(task, sampler, rng)
             if isinstance(result, Trajectory):
                 encoded = encode_trajectory(result)
-                encoded.entry.update(action=[float(v) for v in ActionSequence.from_keyposes(result.keyposes).vector()],
+                encoded.entry.update(index=task.index, action=[float(v) for v in ActionSequence.from_keyposes(result.keyposes).vector()],
                                      attempts=attempt + 1, worker_seconds=round(time.perf_counter() - start, 3))
                 return encoded
             reasons.append(result)
@@ -285,9 +286,11 @@ def run_tasks(config: CollectConfig, writer: DatasetWriter, tasks: list[Task], s
     return summary
 
 
-def _tasks(config: CollectConfig, sampler: str, indices: range, gmm: dict | None = None) -> list[Task]:
-    from actaim2.sim.objects.catalog import object_id
+def stage_tasks(config: CollectConfig, sampler: str, indices: range, gmm: dict | None = None) -> list[Task]:
+    """The tasks of one sampler on every object: trajectory numbers ``indices``, seeds derived.
 
+    With ``gmm`` (object id -> fitted GMMAdaptiveSampler) objects without a sampler are left out.
+    """
     tasks = []
     for category, instance in config.objects:
         oid = object_id(category, instance)
@@ -311,21 +314,27 @@ def _label(config: CollectConfig) -> dict:
     return label_dataset(config.out, encoder, TRAIN, config.show_progress)
 
 
-def fit_gmm_samplers(config: CollectConfig) -> dict[str, GMMAdaptiveSampler]:
-    """Per object, the GMM-adaptive sampler fitted on all its labelled trajectories."""
+def fit_gmm_samplers(config: CollectConfig, round_start: int) -> dict[str, GMMAdaptiveSampler]:
+    """Per object, the GMM-adaptive sampler of the round whose first GMM index is ``round_start``.
+
+    Fitted on the trajectories of the earlier stages and rounds only, labelled among themselves,
+    in id order: a round interrupted and resumed draws exactly what it would have drawn.
+    """
     reader = DatasetReader(config.out)
     with np.load(config.out / EMBEDDINGS_FILE) as f:
         z = dict(zip(f["ids"].tolist(), f["z"]))
-    by_object: dict[str, list[dict]] = {}
-    for e in reader.entries:
-        by_object.setdefault(e["object_id"], []).append(e)
+    before = sorted((e for e in reader.entries if e["sampler"] != "gmm" or e["index"] < round_start), key=lambda e: e["id"])
+    scores, _, threshold = visual_labels(before, z, TRAIN)
+    by_object: dict[str, list[int]] = {}
+    for k, e in enumerate(before):
+        by_object.setdefault(e["object_id"], []).append(k)
     samplers = {}
-    for oid, entries in by_object.items():
-        if len(entries) < 2:
+    for oid, rows in by_object.items():
+        if len(rows) < 2:
             continue
         samplers[oid] = GMMAdaptiveSampler(
-            np.array([e["action"] for e in entries]), np.stack([z[e["id"]] for e in entries]),
-            np.array([e["label"] for e in entries]), config.gmm, SamplingConfig(), seed=derive_seed(config.seed, oid, 0, len(entries)))
+            np.array([before[k]["action"] for k in rows]), np.stack([z[before[k]["id"]] for k in rows]),
+            scores[rows] > threshold, config.gmm, SamplingConfig(), seed=derive_seed(config.seed, oid, 0, round_start))
     return samplers
 
 
@@ -336,19 +345,22 @@ def collect(config: CollectConfig) -> dict:
     # One intra-op thread here too: on a loaded 2-core machine, two threads made encoder
     # training 5x slower (1.8 s against 0.36 s per step, measured) instead of faster.
     torch.set_num_threads(1)
+    n_gmm = config.per_object.get("gmm", 0)
+    if n_gmm > 0 and not any(split_of(c, i) == TRAIN for c, i in config.objects):
+        raise ValueError(f"GMM-adaptive sampling needs visual labels, whose threshold is calibrated on {TRAIN} "
+                         f"objects: add some, or collect with --gmm 0")
     config.out.mkdir(parents=True, exist_ok=True)
     info = {"rig": "ring5", "robot": config.robot, "seed": config.seed, "objects": [list(o) for o in config.objects],
             "per_object": config.per_object, "dof_fraction": config.dof_fraction}
     report: dict = {"stages": []}
     with DatasetWriter(config.out, info) as writer:
-        explore = [t for s in EXPLORE_SAMPLERS for t in _tasks(config, s, range(config.per_object.get(s, 0)))]
+        explore = [t for s in EXPLORE_SAMPLERS for t in stage_tasks(config, s, range(config.per_object.get(s, 0)))]
         report["stages"].append(run_tasks(config, writer, explore, "explore"))
-        n_gmm = config.per_object.get("gmm", 0)
-        if writer.entries:
+        if n_gmm > 0 or any(e["split"] == TRAIN for e in writer.entries):  # labels need TRAIN trajectories
             report["labelling"] = _label(config)
         for r in range(config.rounds if n_gmm > 0 else 0):
             indices = range(r * n_gmm // config.rounds, (r + 1) * n_gmm // config.rounds)
-            tasks = _tasks(config, "gmm", indices, fit_gmm_samplers(config))
+            tasks = stage_tasks(config, "gmm", indices, fit_gmm_samplers(config, indices.start))
             report["stages"].append(run_tasks(config, writer, tasks, f"adapt round {r + 1}/{config.rounds}"))
             report["labelling"] = _label(config)
         check_no_leak(writer.entries)

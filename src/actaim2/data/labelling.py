@@ -38,7 +38,7 @@ def encoder_digest(path: Path) -> str:
 def fit_default_encoder(reader: DatasetReader, max_trajectories: int = 150, steps: int = 800, seed: int = 0,
                         show_progress: bool = True) -> tuple[ImageEncoder, list[float]]:
     """Train the autoencoder E on O_init and O_final of (up to) ``max_trajectories`` training trajectories."""
-    train = [e for e in reader.entries if e["split"] == TRAIN]
+    train = sorted((e for e in reader.entries if e["split"] == TRAIN), key=lambda e: e["id"])  # independent of append order
     if not train:
         raise ValueError(f"{reader.root} has no training-split trajectories to train the encoder on")
     rng = np.random.default_rng(seed)
@@ -83,6 +83,18 @@ def embed_dataset(reader: DatasetReader, encoder: ImageEncoder, digest: str, sho
     return out
 
 
+def visual_labels(entries: list[dict], z: dict[str, np.ndarray], calibration_split: str = TRAIN) -> tuple[np.ndarray, np.ndarray, float]:
+    """(relative scores, changes, threshold) of ``entries``, the threshold calibrated on their
+    ``calibration_split`` members; the labels are ``scores > threshold``."""
+    changes = change(np.stack([z[e["id"]] for e in entries]))
+    scores = relative_score(changes, np.array([e["object_id"] for e in entries]))
+    calib = np.array([e["split"] == calibration_split for e in entries])
+    if not calib.any():
+        raise ValueError(f"no trajectories in calibration split {calibration_split!r} to calibrate the success threshold on")
+    gt = np.array([e["gt_success"] for e in entries], dtype=bool)
+    return scores, changes, calibrate_threshold(scores[calib], gt[calib])
+
+
 def label_dataset(root: str | Path, encoder_path: str | Path, calibration_split: str = TRAIN, show_progress: bool = True) -> dict:
     """Embed, calibrate the threshold on ``calibration_split``, write labels; returns the report."""
     reader = DatasetReader(root)
@@ -90,14 +102,10 @@ def label_dataset(root: str | Path, encoder_path: str | Path, calibration_split:
         raise ValueError(f"{root} holds no trajectories to label")
     encoder = ImageEncoder.load(encoder_path)
     z = embed_dataset(reader, encoder, encoder_digest(encoder_path), show_progress)
-    ids = [e["id"] for e in reader.entries]
-    changes = change(np.stack([z[i] for i in ids]))
-    scores = relative_score(changes, np.array([e["object_id"] for e in reader.entries]))
+    scores, changes, threshold = visual_labels(reader.entries, z, calibration_split)
     gt = np.array([e["gt_success"] for e in reader.entries], dtype=bool)
     splits = np.array([e["split"] for e in reader.entries])
     calib = splits == calibration_split
-    if not calib.any():
-        raise ValueError(f"no trajectories in calibration split {calibration_split!r}")
 
     def metrics(values: np.ndarray, threshold: float) -> dict:
         return {
@@ -106,9 +114,8 @@ def label_dataset(root: str | Path, encoder_path: str | Path, calibration_split:
             "other_splits": label_metrics(values[~calib], gt[~calib], threshold) if (~calib).any() else None,
         }
 
-    threshold = calibrate_threshold(scores[calib], gt[calib])
-    write_labels(root, [{"id": i, "score": float(s), "change": float(c), "success": bool(s > threshold)}
-                        for i, s, c in zip(ids, scores, changes)])
+    write_labels(root, [{"id": e["id"], "score": float(s), "change": float(c), "success": bool(s > threshold)}
+                        for e, s, c in zip(reader.entries, scores, changes)])
     report = {
         "encoder": str(encoder_path),
         "encoder_kind": encoder.spec.kind,

@@ -29,6 +29,10 @@ def outcome(entry: dict) -> str | None:
     return f"dof{k}{'+' if change[k] > 0 else '-'}"
 
 
+def _percent(value: float) -> str:
+    return "-" if np.isnan(value) else f"{100 * value:.1f}%"
+
+
 def _rate(values: list[bool]) -> str:
     return f"{100.0 * np.mean(values):.1f}% ({sum(values)}/{len(values)})" if values else "-"
 
@@ -94,6 +98,6 @@ def labelling_table(report: dict) -> str:
         if part.get("other_splits"):
             rows["all but calibration"] = part["other_splits"]
         for split, m in rows.items():
-            lines.append(f"| {name} | {split} | {m['n']} | {m['positives']} | {100 * m['accuracy']:.1f}% | "
-                         f"{100 * m['balanced_accuracy']:.1f}% | {100 * m['precision']:.1f}% | {100 * m['recall']:.1f}% |")
+            cells = " | ".join(_percent(m[k]) for k in ("accuracy", "balanced_accuracy", "precision", "recall"))
+            lines.append(f"| {name} | {split} | {m['n']} | {m['positives']} | {cells} |")
     return "\n".join(lines)

@@ -296,8 +296,8 @@ class DatasetReader:
     def __len__(self) -> int:
         return len(self.entries)
 
-    def members(self, entry: dict, names: set[str] | None = None) -> dict[str, bytes]:
-        """The raw members of one trajectory (all, or only those whose name is in ``names``)."""
+    def members(self, entry: dict) -> dict[str, bytes]:
+        """The raw members (name -> bytes) of one trajectory."""
         if self._pid != os.getpid():  # file handles do not survive a fork: reopen per process
             self._files, self._pid = {}, os.getpid()
         f = self._files.get(entry["chunk"])
@@ -310,17 +310,12 @@ class DatasetReader:
         out = {}
         with tarfile.open(fileobj=io.BytesIO(blob), mode="r:") as tar:
             for member in tar:
-                if names is None or member.name in names:
-                    out[member.name] = tar.extractfile(member).read()
+                out[member.name] = tar.extractfile(member).read()
         return out
 
     def read(self, tid_or_entry: str | dict) -> Trajectory:
         entry = self.by_id[tid_or_entry] if isinstance(tid_or_entry, str) else tid_or_entry
         return decode_trajectory(self.members(entry))
-
-    def meta(self, entry: dict) -> dict:
-        name = f"{entry['id']}.meta.json"
-        return json.loads(self.members(entry, {name})[name])
 
     def observations(self, entry: dict, names: list[str]) -> tuple[dict, dict[str, Observation]]:
         """The meta dict and the named observations of one trajectory, decoding nothing else."""
