@@ -22,6 +22,7 @@ setup(
     entry_points={
         "console_scripts": [
             "sim_node = actaim2_sim.sim_node:main",
+            "episode_runner = actaim2_sim.episode_runner:main",
         ],
     },
 )

@@ -28,8 +28,8 @@ if [ -f "$_actaim2_root/.deps/mesa/lvp_icd.json" ] && [ -z "${VK_ICD_FILENAMES:-
 fi
 
 if [ "${1:-}" != "--no-workspace" ] && [ -f "$_actaim2_root/install/setup.bash" ]; then
-  # shellcheck source=/dev/null
-  . "$_actaim2_root/install/setup.bash"
+  # colcon's setup scripts read unset variables: allow that even when the caller uses `set -u`.
+  case $- in *u*) set +u; . "$_actaim2_root/install/setup.bash"; set -u;; *) . "$_actaim2_root/install/setup.bash";; esac
 fi
 
 if ! command -v ros2 >/dev/null 2>&1 || [ "$(command -v ros2)" = "$_actaim2_root/tools/bin/ros2" ]; then
