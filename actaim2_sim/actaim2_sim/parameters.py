@@ -61,8 +61,10 @@ DEFAULTS: dict[str, tuple[object, str]] = {
     "goal_tolerance": (0.05, "default per-joint goal tolerance (rad) when a goal gives none; 0 = not checked"),
     "goal_time_tolerance": (0.5, "seconds after a trajectory's end to reach the goal tolerance"),
     "gripper_goal_tolerance": (0.002, "finger position error that counts as reached (joint units)"),
-    "gripper_stall_velocity": (0.001, "finger speed below which the gripper counts as not moving"),
-    "gripper_stall_timeout": (1.0, "sim seconds without movement before a gripper goal ends stalled"),
+    "gripper_stall_velocity": (0.001, "mean finger speed over gripper_stall_timeout below which the gripper counts as "
+                                      "stopped (judged on position progress: PhysX reports a velocity for squeezing fingers)"),
+    "gripper_stall_timeout": (1.0, "sim seconds the fingers must stay stopped (within gripper_stall_velocity x this "
+                                   "window) before a gripper goal ends stalled"),
     "gripper_allow_stalling": (True, "a stalled gripper (closed on a handle) succeeds instead of aborting"),
     "category": ("storage_furniture", "object category loaded at start-up"),
     "instance": (0, "object instance loaded at start-up"),
@@ -88,7 +90,8 @@ def declare_parameters(node: Node) -> SimParameters:
     for name in ("physics_rate", "tick_period", "joint_state_rate", "action_monitor_rate"):
         if not getattr(p, name) > 0:
             raise ValueError(f"parameter {name} must be > 0, got {getattr(p, name)}")
-    for name in ("real_time_factor", "camera_rate", "goal_tolerance", "goal_time_tolerance", "gripper_stall_timeout"):
+    for name in ("real_time_factor", "camera_rate", "goal_tolerance", "goal_time_tolerance", "gripper_stall_velocity",
+                 "gripper_stall_timeout"):
         if getattr(p, name) < 0:
             raise ValueError(f"parameter {name} must be >= 0, got {getattr(p, name)}")
     return p

@@ -18,9 +18,16 @@ sim-time period is due, holding ``_lock`` (the simulation and the goal slots) wh
 same lock; action execute callbacks then wait for the loop to report an outcome. Hence the
 MultiThreadedExecutor. Physics keeps priority: camera frames that fall due while the loop is
 behind are skipped, never queued.
+
+Shutdown (Ctrl-C, SIGTERM): rclpy's own signal handler would shut the context down at once, so
+running goals could not be answered. Here the signal only sets a flag that the spin loop polls;
+then every running goal is aborted, goals that arrive later are aborted at once (an execute
+callback left waiting would keep its executor thread, and with it the process, alive forever),
+and the executor spins a little longer so the clients get their results.
 """
 from __future__ import annotations
 
+import signal
 import threading
 import time
 from dataclasses import dataclass, field
@@ -61,6 +68,10 @@ from actaim2_sim.parameters import declare_parameters
 
 MAX_CATCH_UP = 0.25  # wall seconds of lag made up per tick at most (no spiral of death when behind)
 FAST_TICK_BUDGET = 0.02  # wall seconds of stepping per tick with real_time_factor 0
+SHUTDOWN_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+SPIN_POLL = 0.1  # wall seconds: the longest a spin loop waits before it looks at its flag or deadline again
+RELEASE_TIMEOUT = 1.0  # wall seconds at most for aborted goals' execute callbacks to return
+RESULT_FLUSH = 0.2  # wall seconds of spinning that hand the last results to their clients
 
 
 def sim_time_msg(t: float) -> Time:
@@ -121,7 +132,8 @@ class SimNode(Node):
         self.arm = ArmController(self.arm_joints, self.env.robot.arm_positions(), p.goal_tolerance, p.goal_time_tolerance)
         self._arm_goal: PendingGoal | None = None
         self._gripper_goal: tuple[PendingGoal, GripperGoal] | None = None
-        self._lock = threading.Lock()  # the simulation, the controllers and the goal slots
+        self._closing = False  # shutting down: no more ticks, every new goal is aborted at once
+        self._lock = threading.Lock()  # the simulation, the controllers, the goal slots, _closing
 
         loop_group, request_group, action_group = (MutuallyExclusiveCallbackGroup(), MutuallyExclusiveCallbackGroup(),
                                                    ReentrantCallbackGroup())
@@ -169,7 +181,8 @@ class SimNode(Node):
     # -- the loop -----------------------------------------------------------------------------
     def _tick(self) -> None:
         with self._lock:
-            self._advance()
+            if not self._closing:
+                self._advance()
 
     def _advance(self) -> None:
         """Step physics to the target sim time of this tick; publish what fell due."""
@@ -227,7 +240,7 @@ class SimNode(Node):
         now = self.env.time
         _, q, qd = self.env.joint_state()
         self._monitor_arm(now, q[: self.n_arm], qd[: self.n_arm])
-        self._monitor_gripper(now, float(q[self.n_arm]))
+        self._monitor_gripper(now, self.env.robot.gripper_position())
 
     def _monitor_arm(self, now: float, q: np.ndarray, qd: np.ndarray) -> None:
         goal = self._arm_goal
@@ -282,6 +295,10 @@ class SimNode(Node):
             start_time=stamp if stamp > 0 else None,
         )
         with self._lock:
+            if self._closing:
+                goal.finish("abort", FollowJointTrajectory.Result(error_code=INVALID_GOAL,
+                                                                  error_string="aborted: sim_node shutting down"))
+                return
             now = self.env.time
             validate(command, self.arm_joints, now)
             previous = self._arm_goal
@@ -335,14 +352,16 @@ class SimNode(Node):
         pending = PendingGoal(handle)
         p = self.p
         with self._lock:
-            if not np.isfinite(command.position):
-                self.get_logger().error(f"rejected gripper goal: position {command.position} is not finite")
+            if self._closing or not np.isfinite(command.position):
+                if not self._closing:
+                    self.get_logger().error(f"rejected gripper goal: position {command.position} is not finite")
                 handle.abort()
                 return self._gripper_result(GripperOutcome(False, False, False))
             if self._gripper_goal is not None:  # preempted, like the ros2_control controller
                 self._gripper_goal[0].finish("abort", self._gripper_result(GripperOutcome(False, False, False)))
-            tracker = GripperGoal(command.position, self.env.time, p.gripper_goal_tolerance, p.gripper_stall_velocity,
-                                  p.gripper_stall_timeout, p.gripper_allow_stalling)
+            tracker = GripperGoal(command.position, self.env.time, self.env.robot.gripper_position(),
+                                  p.gripper_goal_tolerance, p.gripper_stall_velocity, p.gripper_stall_timeout,
+                                  p.gripper_allow_stalling)
             self.env.set_gripper(command.position)
             self._gripper_goal = (pending, tracker)
         return pending.conclude()
@@ -360,14 +379,20 @@ class SimNode(Node):
         self._arm_goal, self._gripper_goal = None, None
         return aborted
 
-    def release_goals(self) -> None:
-        """Abort every running goal and wait (briefly) until the executor threads waiting in
-        :meth:`PendingGoal.conclude` have ended them: call before shutting the executor down."""
+    def release_goals(self, executor: MultiThreadedExecutor) -> None:
+        """Stop the loop, abort every running goal (and, from now on, every new one), and spin
+        ``executor`` until the aborted goals' execute callbacks have returned and their results
+        have gone out to the clients: call before shutting the executor down."""
         with self._lock:
-            aborted = self._abort_goals("sim_node shutting down")
-        for goal in aborted:
-            if goal.handle is not None:
-                goal.concluded.wait(timeout=1.0)
+            self._closing = True
+            aborted = [goal for goal in self._abort_goals("sim_node shutting down") if goal.handle is not None]
+        deadline = time.monotonic() + RELEASE_TIMEOUT
+        while not all(goal.concluded.is_set() for goal in aborted) and time.monotonic() < deadline and executor.context.ok():
+            executor.spin_once(timeout_sec=SPIN_POLL)
+        # the result responses are tasks of this executor, created as the execute callbacks return
+        flushed = time.monotonic() + RESULT_FLUSH
+        while time.monotonic() < flushed and executor.context.ok():
+            executor.spin_once(timeout_sec=SPIN_POLL)
 
     # -- scene --------------------------------------------------------------------------------
     def _on_reset_scene(self, request: ResetScene.Request, response: ResetScene.Response) -> ResetScene.Response:
@@ -403,10 +428,22 @@ def _trajectory_result(outcome: Outcome) -> FollowJointTrajectory.Result:
     return FollowJointTrajectory.Result(error_code=outcome.error_code, error_string=outcome.message)
 
 
+def spin_until_signal(executor: MultiThreadedExecutor) -> None:
+    """Spin until SIGINT or SIGTERM (or the context ends). The handlers only set a flag: a
+    KeyboardInterrupt raised at an arbitrary point of the executor's own code could leave it
+    unable to spin again for the goals' results. ``SPIN_POLL`` bounds the wait for a callback,
+    since Python runs signal handlers only between the executor's waits."""
+    requested = threading.Event()
+    for signum in SHUTDOWN_SIGNALS:
+        signal.signal(signum, lambda *_: requested.set())
+    while not requested.is_set() and executor.context.ok():
+        executor.spin_once(timeout_sec=SPIN_POLL)
+
+
 def main(args: list[str] | None = None) -> None:
     apply_ros_defaults()
-    # Ctrl-C as a plain KeyboardInterrupt: the context stays valid until the running goals have
-    # been aborted, so their clients get a result instead of a vanished server.
+    # No rclpy signal handler: the context must stay valid until the running goals have been
+    # aborted and answered (see the module docstring, "Shutdown").
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     try:
         node = SimNode()
@@ -414,14 +451,18 @@ def main(args: list[str] | None = None) -> None:
         rclpy.logging.get_logger("sim_node").fatal(str(exc))
         rclpy.try_shutdown()
         raise SystemExit(1) from None
+    except KeyboardInterrupt:  # Ctrl-C while the scene loads: nothing runs yet
+        rclpy.try_shutdown()
+        return
     # Action goals wait in executor threads for the loop to finish them: allow several at once.
     executor = MultiThreadedExecutor(num_threads=8)
+    executor.add_node(node)
     try:
-        rclpy.spin(node, executor=executor)
-    except (KeyboardInterrupt, ExternalShutdownException):
+        spin_until_signal(executor)
+    except ExternalShutdownException:
         pass
     finally:
-        node.release_goals()
+        node.release_goals(executor)
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()

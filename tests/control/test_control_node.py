@@ -15,7 +15,7 @@ from actaim2.control.model import RobotModel
 from actaim2.geometry import matrix_to_pose, rotation_angle
 from actaim2.robots import load_robot_spec
 
-from conftest import wait_for
+from harness import wait_for
 
 SCENE = {"category": "table", "instance": 0, "seed": 0}
 SIM_PARAMS = {"robot": "panda", "camera_rate": 0.0, "render_path": "raycast", **SCENE}

@@ -18,7 +18,7 @@ from typing import Any, Callable, Iterator
 import numpy as np
 import pytest
 
-from conftest import REPO, wait_for
+from harness import REPO, wait_for
 
 PEER = Path(__file__).with_name("interface_peer.py")
 DISCOVERY_TIMEOUT = 15.0

@@ -16,7 +16,7 @@ import pytest
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
-from conftest import REPO, wait_for
+from harness import REPO, wait_for
 from interface_types import (
     generated_classes,
     interface_files,

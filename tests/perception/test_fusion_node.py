@@ -31,7 +31,7 @@ from actaim2_perception.transforms import (
     matrix_to_transform,
     transform_to_matrix,
 )
-from conftest import wait_for
+from harness import wait_for
 
 CENTER, HALF = (0.5, 0.0, 0.3), 0.5
 BOX_CENTER, BOX_SIZE = np.array([0.6, 0.25, 0.15]), np.array([0.2, 0.2, 0.3])

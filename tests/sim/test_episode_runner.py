@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import threading
 
-from conftest import wait_for
+from harness import wait_for
 
 SCENE = {"category": "storage_furniture", "instance": 0, "seed": 0}
 

@@ -27,7 +27,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from actaim2.robots import load_robot_spec
 from actaim2_perception.pointcloud2 import from_msg
 from actaim2_perception.transforms import TF_STATIC_LISTENER_QOS, transform_to_matrix
-from conftest import NodeProcess, wait_for
+from harness import NodeProcess, wait_for
 
 SPEC = load_robot_spec("panda")
 ARM = list(SPEC.arm_joints)

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Sequence
 import numpy as np
 
 from actaim2.robots import RobotSpec, load_robot_spec
+from actaim2.sim.gripper_action import GripperGoal
 from actaim2.sim.joint_trajectory import ActiveTrajectory, TrajectoryCommand
 from actaim2.sim.objects.catalog import object_folder
 from actaim2.sim.objects.loader import LoadedObject, recommended_front_distance
@@ -35,6 +36,11 @@ if TYPE_CHECKING:
 WORKSPACE_CENTER = np.array([0.75, 0.0, 0.4])
 # Object placement variation drawn from the reset seed: front distance, lateral offset, yaw.
 PLACEMENT_JITTER = (0.03, 0.05, np.deg2rad(5.0))
+# SimEnv.grip's ends: within GRIP_REACHED of the target, or fingers stopped (moving less than
+# GRIP_STALL_SPEED on average over GRIP_STALL_WINDOW seconds: on a handle, or blocked).
+GRIP_REACHED = 1e-4
+GRIP_STALL_SPEED = 2e-3
+GRIP_STALL_WINDOW = 0.05
 
 
 @dataclass(frozen=True)
@@ -171,15 +177,16 @@ class SimEnv:
     def grip(self, closed: bool, opening: float = 1.0, timeout: float = 1.5) -> float:
         """Close (or open, to ``opening`` of the full stroke) the gripper and step until the
         fingers stop, on the handle or at their target; returns the finger position (a closed
-        gripper stalled on a handle stops early)."""
+        gripper stalled on a handle stops early). Stopped is judged as GripperCommand goals are
+        (:mod:`actaim2.sim.gripper_action`), over a window of ``GRIP_STALL_WINDOW`` seconds."""
         spec = self.spec
-        self.set_gripper(spec.gripper_closed if closed else spec.gripper_closed + opening * (spec.gripper_open - spec.gripper_closed))
-        still = 0
+        target = spec.gripper_closed if closed else spec.gripper_closed + opening * (spec.gripper_open - spec.gripper_closed)
+        self.set_gripper(target)
+        goal = GripperGoal(target, self.time, self.robot.gripper_position(), GRIP_REACHED, GRIP_STALL_SPEED,
+                           GRIP_STALL_WINDOW, allow_stalling=True)
         for _ in range(int(timeout / self.timestep)):
             self.step()
-            speed = np.abs(self.robot.joint_velocities()[len(self.spec.arm_joints):]).max()
-            still = still + 1 if speed < 2e-3 else 0
-            if still >= 12:
+            if goal.update(self.time, self.robot.gripper_position()) is not None:
                 break
         return self.robot.gripper_position()
 
