@@ -35,7 +35,7 @@ from actaim2.control.ik import IKOptions, IKSolver
 from actaim2.control.model import RobotModel
 from actaim2.control.planner import KeyposePlanner, PlannerOptions
 from actaim2.control.trajectory import Limits
-from actaim2.data.trajectory import Keypose
+from actaim2.keypose import Keypose
 from actaim2.geometry import is_unit_quaternion
 from actaim2.perception.cloud_codec import CloudFormatError
 from actaim2.robots import load_robot_spec

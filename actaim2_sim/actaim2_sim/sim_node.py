@@ -21,9 +21,9 @@ behind are skipped, never queued.
 
 Shutdown (Ctrl-C, SIGTERM): rclpy's own signal handler would shut the context down at once, so
 running goals could not be answered. Here the signal only sets a flag that the spin loop polls;
-then every running goal is aborted, goals that arrive later are aborted at once (an execute
-callback left waiting would keep its executor thread, and with it the process, alive forever),
-and the executor spins a little longer so the clients get their results.
+then the loop stops, every running goal is aborted, goals that arrive later are aborted at once
+(an execute callback left waiting would keep its executor thread, and with it the process, alive
+forever), and the executor spins a little longer so the clients get their results.
 """
 from __future__ import annotations
 
@@ -132,7 +132,8 @@ class SimNode(Node):
         self.arm = ArmController(self.arm_joints, self.env.robot.arm_positions(), p.goal_tolerance, p.goal_time_tolerance)
         self._arm_goal: PendingGoal | None = None
         self._gripper_goal: tuple[PendingGoal, GripperGoal] | None = None
-        self._closing = False  # shutting down: no more ticks, every new goal is aborted at once
+        self._closing = False  # shutting down: the loop stops, every new goal is aborted at once
+        self._loop_stopped = threading.Event()
         self._lock = threading.Lock()  # the simulation, the controllers, the goal slots, _closing
 
         loop_group, request_group, action_group = (MutuallyExclusiveCallbackGroup(), MutuallyExclusiveCallbackGroup(),
@@ -165,7 +166,7 @@ class SimNode(Node):
         self._next_camera_time = 0.0
         self._wall_last = time.monotonic()
         self._sim_target = self.env.time
-        self.create_timer(p.tick_period, self._tick, callback_group=loop_group)
+        self._loop_timer = self.create_timer(p.tick_period, self._tick, callback_group=loop_group)
 
     # -- static frames ------------------------------------------------------------------------
     def _publish_tf_static(self) -> None:
@@ -181,8 +182,13 @@ class SimNode(Node):
     # -- the loop -----------------------------------------------------------------------------
     def _tick(self) -> None:
         with self._lock:
-            if not self._closing:
-                self._advance()
+            if self._closing:
+                # Cancelled from its own callback: no other handler of this timer can be pending
+                # (its group is busy), so none will try to take a cancelled timer.
+                self._loop_timer.cancel()
+                self._loop_stopped.set()
+                return
+            self._advance()
 
     def _advance(self) -> None:
         """Step physics to the target sim time of this tick; publish what fell due."""
@@ -379,15 +385,20 @@ class SimNode(Node):
         self._arm_goal, self._gripper_goal = None, None
         return aborted
 
-    def release_goals(self, executor: MultiThreadedExecutor) -> None:
+    def close(self, executor: MultiThreadedExecutor) -> None:
         """Stop the loop, abort every running goal (and, from now on, every new one), and spin
-        ``executor`` until the aborted goals' execute callbacks have returned and their results
-        have gone out to the clients: call before shutting the executor down."""
+        ``executor`` until the loop has stopped, the aborted goals' execute callbacks have returned
+        and their results have gone out to the clients: call before shutting the executor down
+        (a tick still in flight then would use the destroyed executor)."""
         with self._lock:
             self._closing = True
             aborted = [goal for goal in self._abort_goals("sim_node shutting down") if goal.handle is not None]
+
+        def released() -> bool:
+            return self._loop_stopped.is_set() and all(goal.concluded.is_set() for goal in aborted)
+
         deadline = time.monotonic() + RELEASE_TIMEOUT
-        while not all(goal.concluded.is_set() for goal in aborted) and time.monotonic() < deadline and executor.context.ok():
+        while not released() and time.monotonic() < deadline and executor.context.ok():
             executor.spin_once(timeout_sec=SPIN_POLL)
         # the result responses are tasks of this executor, created as the execute callbacks return
         flushed = time.monotonic() + RESULT_FLUSH
@@ -428,16 +439,15 @@ def _trajectory_result(outcome: Outcome) -> FollowJointTrajectory.Result:
     return FollowJointTrajectory.Result(error_code=outcome.error_code, error_string=outcome.message)
 
 
-def spin_until_signal(executor: MultiThreadedExecutor) -> None:
-    """Spin until SIGINT or SIGTERM (or the context ends). The handlers only set a flag: a
-    KeyboardInterrupt raised at an arbitrary point of the executor's own code could leave it
-    unable to spin again for the goals' results. ``SPIN_POLL`` bounds the wait for a callback,
-    since Python runs signal handlers only between the executor's waits."""
+def shutdown_requested() -> threading.Event:
+    """An event that SIGINT and SIGTERM set, instead of raising KeyboardInterrupt wherever the
+    main thread is: inside the executor's own code that can leave the executor unable to spin for
+    the goals' results, inside SAPIEN's start-up it crashed the process at exit. A signal during
+    start-up is acted on as soon as the node is up."""
     requested = threading.Event()
     for signum in SHUTDOWN_SIGNALS:
         signal.signal(signum, lambda *_: requested.set())
-    while not requested.is_set() and executor.context.ok():
-        executor.spin_once(timeout_sec=SPIN_POLL)
+    return requested
 
 
 def main(args: list[str] | None = None) -> None:
@@ -445,24 +455,24 @@ def main(args: list[str] | None = None) -> None:
     # No rclpy signal handler: the context must stay valid until the running goals have been
     # aborted and answered (see the module docstring, "Shutdown").
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    requested = shutdown_requested()
     try:
         node = SimNode()
     except ValueError as exc:  # a bad parameter: say which one, without a traceback
         rclpy.logging.get_logger("sim_node").fatal(str(exc))
         rclpy.try_shutdown()
         raise SystemExit(1) from None
-    except KeyboardInterrupt:  # Ctrl-C while the scene loads: nothing runs yet
-        rclpy.try_shutdown()
-        return
     # Action goals wait in executor threads for the loop to finish them: allow several at once.
     executor = MultiThreadedExecutor(num_threads=8)
     executor.add_node(node)
     try:
-        spin_until_signal(executor)
+        # Python runs signal handlers only between the executor's waits: SPIN_POLL bounds them.
+        while not requested.is_set() and executor.context.ok():
+            executor.spin_once(timeout_sec=SPIN_POLL)
     except ExternalShutdownException:
         pass
     finally:
-        node.release_goals(executor)
+        node.close(executor)
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown()

@@ -125,7 +125,7 @@ def _kinova_j2s6s200() -> RobotSpec:
 PRESETS = {"panda": _panda, "kinova_j2s6s200": _kinova_j2s6s200}
 
 
-def _resolve_package_uri(uri: str, package_dirs: tuple[Path, ...], urdf_dir: Path) -> str:
+def resolve_package_uri(uri: str, package_dirs: tuple[Path, ...], urdf_dir: Path) -> str:
     """Absolute path of a URDF mesh reference (``package://pkg/rel`` or a relative path)."""
     if uri.startswith("package://"):
         rel = uri[len("package://"):]
@@ -156,7 +156,7 @@ def movable_gripper_urdf(spec: RobotSpec, cache_dir: Path | None = None) -> Path
                 raise ValueError(f"{spec.urdf_path}: fixed gripper joint {joint.get('name')} has no usable <limit>")
             joint.set("type", "revolute")
     for mesh in root.iter("mesh"):
-        mesh.set("filename", _resolve_package_uri(mesh.get("filename", ""), spec.package_dirs, spec.urdf_path.parent))
+        mesh.set("filename", resolve_package_uri(mesh.get("filename", ""), spec.package_dirs, spec.urdf_path.parent))
     return write_cached_urdf(root, spec.name, cache_dir)
 
 
@@ -221,13 +221,19 @@ def load_robot_spec(name_or_yaml: str) -> RobotSpec:
     )
 
 
-def _urdf_velocity_limits(urdf_path: Path, joints: list[str]) -> list[float]:
-    limits = {}
-    for joint in ET.parse(urdf_path).getroot().findall("joint"):
+def urdf_joint_limits(urdf_path: Path) -> dict[str, tuple[float, float]]:
+    """(effort, velocity) of every joint with a ``<limit>``; an attribute it lacks is inf."""
+    out = {}
+    for joint in ET.parse(urdf_path).getroot().iter("joint"):
         limit = joint.find("limit")
-        if limit is not None and limit.get("velocity") is not None:
-            limits[joint.get("name")] = float(limit.get("velocity"))
-    missing = [j for j in joints if limits.get(j, 0.0) <= 0.0]
+        if limit is not None:
+            out[joint.get("name")] = (float(limit.get("effort", np.inf)), float(limit.get("velocity", np.inf)))
+    return out
+
+
+def _urdf_velocity_limits(urdf_path: Path, joints: list[str]) -> list[float]:
+    velocity = {name: v for name, (_, v) in urdf_joint_limits(urdf_path).items() if 0.0 < v < np.inf}
+    missing = [j for j in joints if j not in velocity]
     if missing:
         raise ValueError(f"{urdf_path}: no velocity limit for {missing}: give max_velocity in the robot YAML")
-    return [limits[j] for j in joints]
+    return [velocity[j] for j in joints]

@@ -234,6 +234,59 @@ def test_gripper_reaches_or_stalls(kinect_node, ros_node):
     assert result.position == pytest.approx(SPEC.gripper_closed, abs=0.002)
 
 
+def handle_grasp_path(scene: dict, back_off: float = 0.1, steps: int = 5) -> list[np.ndarray]:
+    """Arm angles along the approach axis from ``back_off`` before the first handle's grasp pose
+    to the grasp itself: privileged, from the same reset done without ROS."""
+    from actaim2.control.ik import IKSolver
+    from actaim2.control.model import RobotModel
+    from actaim2.sim.env import SimEnv
+
+    env = SimEnv("panda")
+    env.reset(**scene)
+    handle = env.object.handles[0]
+    T_grasp = env.object.link(handle.link).entity_pose.to_transformation_matrix() @ handle.tcp_in_link()
+    solver = IKSolver(RobotModel(SPEC), None)
+    q, path = np.array(SPEC.home), []
+    for distance in np.linspace(back_off, 0.0, steps):
+        T = T_grasp.copy()
+        T[:3, 3] -= distance * T_grasp[:3, 2]
+        result = solver.solve(T, q, rng=np.random.default_rng(0))
+        assert result.success, result.message
+        q = result.angles
+        path.append(q)
+    return path
+
+
+def test_gripper_closed_on_a_handle_stalls_with_default_parameters(kinect_node, ros_node):
+    """PhysX reports a finger velocity (~1-3 mm/s) while the fingers squeeze the handle at a
+    constant position: the default stall detection must still end the goal, stalled = success."""
+    from action_msgs.msg import GoalStatus
+
+    scene = dict(category="table", instance=0, seed=0, dof_fraction=0.5)
+    reset = ros_node.create_client(ResetScene, "/reset_scene")
+    assert reset.wait_for_service(timeout_sec=60.0)
+    future = reset.call_async(ResetScene.Request(**scene))
+    assert wait_for(future.done, 60.0) and future.result().success, future.result()
+    path = handle_grasp_path(scene)
+
+    arm = ActionClient(ros_node, FollowJointTrajectory, "/joint_trajectory_controller/follow_joint_trajectory")
+    gripper = ActionClient(ros_node, GripperCommand, "/gripper_controller/gripper_cmd")
+    assert arm.wait_for_server(timeout_sec=60.0) and gripper.wait_for_server(timeout_sec=60.0)
+    accepted, result = send(arm, trajectory(ARM, [(1.5 + 0.25 * i, q) for i, q in enumerate(path)]))
+    assert accepted and result.error_code == FollowJointTrajectory.Result.SUCCESSFUL, result.error_string
+
+    goal = GripperCommand.Goal()
+    goal.command.position = SPEC.gripper_closed
+    sent = gripper.send_goal_async(goal)
+    assert wait_for(sent.done, 30.0) and sent.result().accepted
+    outcome = sent.result().get_result_async()
+    assert wait_for(outcome.done, 30.0), "the gripper goal never ended on the handle"
+    assert outcome.result().status == GoalStatus.STATUS_SUCCEEDED
+    result = outcome.result().result
+    assert result.stalled and not result.reached_goal
+    assert result.position > SPEC.gripper_closed + 0.002, result.position  # the handle is between the fingers
+
+
 def test_reset_scene_answers_bad_requests_and_reports_dof_limits(kinect_node, ros_node):
     client = ros_node.create_client(ResetScene, "/reset_scene")
     assert client.wait_for_service(timeout_sec=60.0)

@@ -13,9 +13,9 @@ from typing import Callable, Protocol, Sequence
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from actaim2.control.planner import GRASP, INIT, MANIPULATE, PHASE_NAMES, REACH, KeyposePlanner, PlanningError
+from actaim2.control.planner import KeyposePlanner, PlanningError
 from actaim2.control.trajectory import JointTrajectory, State
-from actaim2.data.trajectory import Keypose
+from actaim2.keypose import GRASP, INIT, MANIPULATE, PHASE_NAMES, REACH, Keypose
 from actaim2.geometry import pose_to_matrix
 
 Feedback = Callable[[int, float], None]  # (phase, progress 0..1)

@@ -26,10 +26,9 @@ from actaim2.control.collision import CollisionChecker, points_away_from
 from actaim2.control.ik import IKSolver
 from actaim2.control.line import LineError, LineSegment, solve_line
 from actaim2.control.model import RobotModel
+from actaim2.keypose import GRASP, INIT, MANIPULATE, PHASE_NAMES, REACH
 from actaim2.control.trajectory import JointPlanner, JointTrajectory, Limits, Segment, State, TrajectoryError, sample
 
-INIT, REACH, GRASP, MANIPULATE = 0, 1, 2, 3  # Keypose.phase values
-PHASE_NAMES = ("INIT", "REACH", "GRASP", "MANIPULATE")
 
 
 @dataclass(frozen=True)

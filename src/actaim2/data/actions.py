@@ -14,7 +14,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from actaim2.data.object_cloud import ObjectCloud
-from actaim2.data.trajectory import Keypose
+from actaim2.keypose import Keypose
 
 
 @dataclass

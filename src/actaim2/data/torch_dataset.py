@@ -21,7 +21,8 @@ from torch.utils.data import Dataset
 from actaim2.data.labelling import EMBEDDINGS_FILE
 from actaim2.data.object_cloud import back_project
 from actaim2.data.storage import DatasetReader
-from actaim2.data.trajectory import PHASES, Keypose, Observation
+from actaim2.data.trajectory import PHASES, Observation
+from actaim2.keypose import Keypose
 from actaim2.perception.fusion import CameraCloud
 
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from actaim2.keypose import Keypose
 from actaim2.sim.success import dof_success, moved_fraction
 
 PHASES = ("init", "reach", "grasp", "manipulate")  # keypose phase ids 0..3 (DESIGN.md Keypose.msg)
@@ -47,28 +48,6 @@ class CameraImage:
 
 
 Observation = dict[str, CameraImage]  # camera name -> image, one entry per camera of the rig
-
-
-@dataclass
-class Keypose:
-    """a = (p, R, q): the pose of `tcp` in `world` and whether the gripper is closed."""
-
-    phase: int
-    position: np.ndarray  # (3,)
-    quat_xyzw: np.ndarray  # (4,)
-    gripper_closed: bool
-
-    def to_json(self) -> dict:
-        return {
-            "phase": int(self.phase),
-            "position": [float(v) for v in self.position],
-            "quat_xyzw": [float(v) for v in self.quat_xyzw],
-            "gripper_closed": bool(self.gripper_closed),
-        }
-
-    @classmethod
-    def from_json(cls, d: dict) -> "Keypose":
-        return cls(int(d["phase"]), np.asarray(d["position"], float), np.asarray(d["quat_xyzw"], float), bool(d["gripper_closed"]))
 
 
 @dataclass

@@ -28,6 +28,7 @@ import numpy as np
 from actaim2.control.collision import CollisionChecker, Workspace, points_away_from
 from actaim2.control.ik import IKOptions, IKSolver
 from actaim2.control.model import RobotModel
+from actaim2.geometry import rotation_angle
 from actaim2.sim.env import SimEnv
 from actaim2.sim.objects.model import Handle
 from actaim2.sim.objects.surface import surface_points
@@ -299,7 +300,7 @@ class ScriptedExpert:
         if len(joints) < 2:
             return
         cart = np.linalg.norm(np.diff([T[:3, 3] for T in poses], axis=0), axis=1)
-        rot = np.array([_angle(a, b) for a, b in zip(poses[:-1], poses[1:])])
+        rot = np.array([rotation_angle(a[:3, :3], b[:3, :3]) for a, b in zip(poses[:-1], poses[1:])])
         dq = np.abs(np.diff(joints, axis=0)) / (0.5 * self._vmax)
         dt = np.maximum.reduce([cart / speed, rot * 0.12 / speed, dq.max(axis=1),
                                 np.full(len(cart), 0.02)])
@@ -379,8 +380,3 @@ def _part_motion(joint_type: str, axis: np.ndarray, origin: np.ndarray, dq: floa
     T[:3, :3] = R
     T[:3, 3] = origin - R @ origin
     return T
-
-
-def _angle(A: np.ndarray, B: np.ndarray) -> float:
-    R = A[:3, :3].T @ B[:3, :3]
-    return float(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1)))

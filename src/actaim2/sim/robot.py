@@ -17,14 +17,12 @@ absolute mesh paths) - the same file Pinocchio loads for control.
 """
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import sapien
 
-from actaim2.robots import RobotSpec, movable_gripper_urdf
+from actaim2.robots import RobotSpec, movable_gripper_urdf, urdf_joint_limits
 from actaim2.sim.urdf import parse_urdf
 
 FINGER_FRICTION = 1.2  # rubber-like finger pads
@@ -49,7 +47,7 @@ class SimRobot:
         self.spec = spec
         self.scene = scene  # SAPIEN frees the articulation with its scene: keep it alive
         urdf = movable_gripper_urdf(spec)
-        limits = _urdf_joint_limits(urdf)
+        limits = urdf_joint_limits(urdf)
         loader = scene.create_urdf_loader()
         loader.fix_root_link = True
         builders, actor_builders, _ = parse_urdf(loader, urdf, spec.srdf_path, keep_visuals=keep_visuals)
@@ -157,13 +155,3 @@ class SimRobot:
     def tcp_pose(self) -> np.ndarray:
         """4x4 pose of the canonical ``tcp`` in ``world``: flange link pose times T_flange_tcp."""
         return self.flange.entity_pose.to_transformation_matrix() @ self.spec.T_flange_tcp
-
-
-def _urdf_joint_limits(urdf: Path) -> dict[str, tuple[float, float]]:
-    """(effort, velocity) limit of every joint that declares them."""
-    out = {}
-    for joint in ET.parse(urdf).getroot().iter("joint"):
-        limit = joint.find("limit")
-        if limit is not None:
-            out[joint.get("name")] = (float(limit.get("effort", np.inf)), float(limit.get("velocity", np.inf)))
-    return out

@@ -3,18 +3,17 @@
 SAPIEN cannot even parse a URDF visual with a ``<material>`` when no render device exists
 (it creates a render material on the spot), and a physics-only scene cannot hold visual
 shapes anyway. So without a render system the loader reads a copy of the URDF with the
-``<visual>`` elements removed and every mesh path made absolute; the copy is a temporary
-file that only lives while SAPIEN parses it (meshes are read later, from their originals).
+``<visual>`` elements removed and every mesh path made absolute, written once per content
+(:func:`actaim2.robots.write_cached_urdf`); meshes are read from their originals.
 """
 from __future__ import annotations
 
-import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import sapien
 
-from actaim2.robots import _resolve_package_uri
+from actaim2.robots import resolve_package_uri, write_cached_urdf
 
 
 def parse_urdf(loader: sapien.wrapper.urdf_loader.URDFLoader, urdf_path: Path, srdf_path: Path | None = None,
@@ -30,8 +29,5 @@ def parse_urdf(loader: sapien.wrapper.urdf_loader.URDFLoader, urdf_path: Path, s
         for visual in link.findall("visual"):
             link.remove(visual)
     for mesh in root.iter("mesh"):
-        mesh.set("filename", _resolve_package_uri(mesh.get("filename", ""), tuple(package_dirs), urdf_path.parent))
-    with tempfile.NamedTemporaryFile("w", suffix=".urdf") as copy:
-        copy.write('<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode"))
-        copy.flush()
-        return loader.parse(copy.name, srdf_file=srdf)
+        mesh.set("filename", resolve_package_uri(mesh.get("filename", ""), tuple(package_dirs), urdf_path.parent))
+    return loader.parse(str(write_cached_urdf(root, f"{urdf_path.stem}-physics")), srdf_file=srdf)
