@@ -41,6 +41,10 @@ from actaim2_msgs.srv import ResetScene
 from actaim2_perception.pointcloud2 import from_msg
 
 EPISODE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# s (wall): how long the runner waits, before it exits, for /episode subscribers to acknowledge the
+# last events (transient local keeps them only while the runner lives: an END sent just before
+# exit was lost otherwise)
+EVENT_ACK_TIMEOUT = 2.0
 
 PARAMETERS: dict[str, tuple[object, str]] = {
     "episodes": (3, "number of episodes to run, then exit"),
@@ -226,6 +230,7 @@ class EpisodeRunner(Node):
                 results.append(self._finish(episode, "", False, 0.0, str(exc)))
         successes = sum(r.success for r in results)
         self.get_logger().info(f"{successes}/{len(results)} episodes succeeded")
+        self._episode_pub.wait_for_all_acked(Duration(seconds=EVENT_ACK_TIMEOUT))
         return results
 
     def stop(self) -> None:
@@ -257,6 +262,7 @@ def main(args: list[str] | None = None) -> int:
         node.stop()
     finally:
         executor.shutdown()
+        spinner.join()  # out of rcl before the node goes: a thread left inside it aborted the process at exit
         node.destroy_node()
         rclpy.try_shutdown()
     return code
