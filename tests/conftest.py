@@ -35,8 +35,8 @@ def ros_node(ros_context, request) -> Iterator["rclpy.node.Node"]:
     thread.start()
     yield node
     executor.shutdown()
+    thread.join(timeout=5)  # out of rcl before the node is destroyed (else: "exception was never retrieved")
     node.destroy_node()
-    thread.join(timeout=5)
 
 
 @pytest.fixture

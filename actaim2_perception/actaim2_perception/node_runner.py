@@ -28,6 +28,11 @@ def run(make_node: Callable[[], Node], name: str, args: list[str] | None = None)
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except RuntimeError:
+        # Ctrl-C shuts the context down from rclpy's signal handler; a subscription taken in the
+        # same instant raises RuntimeError from rcl. That is the normal end, anything else is not.
+        if rclpy.ok():
+            raise
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
