@@ -125,6 +125,7 @@ class SimNode(Node):
         self.arm_joints = tuple(self.env.spec.arm_joints)
         self.n_arm = len(self.arm_joints)
         self.env.reset(p.category, p.instance, p.seed, p.dof_fraction)
+        self._category = p.category  # an empty ResetScene category keeps this one
         if p.camera_rate > 0:  # the first picture compiles shaders: not inside the control loop
             started = time.monotonic()
             self.env.observe()
@@ -408,19 +409,23 @@ class SimNode(Node):
     # -- scene --------------------------------------------------------------------------------
     def _on_reset_scene(self, request: ResetScene.Request, response: ResetScene.Response) -> ResetScene.Response:
         response.success = False
-        if request.category not in list_categories():
-            response.message = f"unknown category '{request.category}'; valid categories: {', '.join(list_categories())}"
+        category = request.category or self._category
+        if category not in list_categories():
+            response.message = f"unknown category '{category}'; valid categories: {', '.join(list_categories())}"
             return response
-        instances = category_instances(request.category)
-        if request.instance not in instances:
-            response.message = (f"unknown instance {request.instance} of '{request.category}'; "
-                                f"valid instances: {instances[0]}..{instances[-1]}")
+        instances = category_instances(category)
+        # DESIGN.md: instance -1 draws one from the request's seed (reproducible random objects).
+        instance = request.instance if request.instance >= 0 else int(np.random.default_rng(request.seed).choice(instances))
+        if instance not in instances:
+            response.message = (f"unknown instance {request.instance} of '{category}'; "
+                                f"valid instances: {instances[0]}..{instances[-1]} (or -1: drawn from the seed)")
             return response
         if not (np.isfinite(request.dof_fraction) and 0.0 <= request.dof_fraction <= 1.0):
             response.message = f"dof_fraction must be within [0, 1], got {request.dof_fraction}"
             return response
         with self._lock:
-            info = self.env.reset(request.category, request.instance, request.seed, request.dof_fraction)
+            info = self.env.reset(category, instance, request.seed, request.dof_fraction)
+            self._category = category
             self.arm.hold(self.env.robot.arm_positions())
             self._abort_goals("scene reset")
         self._next_camera_time = self.env.time  # views of the new scene as soon as possible

@@ -312,4 +312,9 @@ def test_reset_scene_answers_bad_requests_and_reports_dof_limits(kinect_node, ro
     np.testing.assert_allclose(initial, lower + 0.25 * (upper - lower), atol=1e-3)
     objects = Inbox(ros_node, JointState, "/object_state")
     assert wait_for(lambda: objects.messages and list(objects.messages[-1].name) == list(response.dof_names), 30.0)
+    # DESIGN.md: an empty category keeps the current one; instance -1 is drawn from the seed.
+    drawn = [call(category="", instance=-1, seed=seed, dof_fraction=0.5) for seed in (7, 7, 8, 9, 10)]
+    assert all(r.success and r.object_id.startswith("door_") for r in drawn), [r.message for r in drawn]
+    assert drawn[0].object_id == drawn[1].object_id
+    assert len({r.object_id for r in drawn}) > 1
     assert kinect_node.alive()
