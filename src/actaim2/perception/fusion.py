@@ -3,7 +3,8 @@
 Measured on this machine (2 cores shared with other jobs; ring5 = 5 x 320x240 random-ish points,
 ~80k after cropping): transform + crop + 5 mm voxel grid took 13-17 ms in torch against 58 ms with
 Open3D's legacy PointCloud and 225 ms with its tensor PointCloud (conversions and its voxel hash
-map). So transform and crop run in torch (one thread, see the node's ``torch_threads``); the voxel
+map); on the ray-cast ring5 scene (384k points, 177k in the cube) it now takes 13-15 ms with
+coordinates kept as rows (3, N) throughout. So transform and crop run in torch (one thread, see the node's ``torch_threads``); the voxel
 grouping then uses numpy's SIMD sort, which beat torch.unique 2-4x on the real ring5 scene
 (180k points in the cube). Statistical outlier removal needs k nearest neighbours, for which
 torch has no spatial index, so that optional step uses Open3D's KD-tree on the voxel cloud.
@@ -36,7 +37,8 @@ class FusedCloud:
     rgb: np.ndarray  # (M, 3) uint8
 
     def subset(self, mask: np.ndarray) -> "FusedCloud":
-        return FusedCloud(self.xyz[mask], self.rgb[mask])
+        """Points where the boolean ``mask`` is True (np.compress: 5x faster than xyz[mask] on rows)."""
+        return FusedCloud(np.compress(mask, self.xyz, axis=0), np.compress(mask, self.rgb, axis=0))
 
 
 @dataclass(frozen=True)
@@ -49,35 +51,45 @@ class FusionConfig:
 
 
 def _to_world_cropped(cloud: CameraCloud, center: torch.Tensor, half_extent: float) -> tuple[torch.Tensor, torch.Tensor]:
+    """World coordinates as rows (3, M) and colours (M, 3) of the cloud's points inside the cube.
+
+    Coordinates stay one row per axis: the (3, 3) x (3, N) product and the crop test then run
+    over contiguous rows, 3-6x faster here than the same work on (N, 3) points.
+    """
     T = torch.as_tensor(np.asarray(cloud.T_world_cloud, dtype=np.float32))
     xyz = torch.from_numpy(np.ascontiguousarray(cloud.xyz, dtype=np.float32))
-    world = torch.addmm(T[:3, 3], xyz, T[:3, :3].T)
-    inside = torch.nonzero(((world - center).abs_() <= half_extent).all(dim=1)).squeeze(1)  # NaN compares False
-    rgb = torch.from_numpy(cloud.rgb).index_select(0, inside) if cloud.rgb is not None else torch.from_numpy(NO_COLOUR).expand(len(inside), 3)
-    return world.index_select(0, inside), rgb
+    world = torch.addmm(T[:3, 3:], T[:3, :3], xyz.T)
+    inside = (world - center[:, None]).abs_().amax(dim=0) <= half_extent  # NaN compares False
+    kept = torch.from_numpy(np.flatnonzero(inside.numpy()))  # numpy's SIMD nonzero: 8x torch.nonzero here
+    rgb = torch.from_numpy(cloud.rgb).index_select(0, kept) if cloud.rgb is not None else torch.from_numpy(NO_COLOUR).expand(len(kept), 3)
+    return world.index_select(1, kept), rgb
 
 
-def voxel_downsample(xyz: np.ndarray, rgb: np.ndarray, origin: np.ndarray, voxel_size: float, cells: int) -> tuple[np.ndarray, np.ndarray]:
+def voxel_downsample(xyz: torch.Tensor, rgb: torch.Tensor, origin: np.ndarray, voxel_size: float, cells: int) -> tuple[np.ndarray, np.ndarray]:
     """Mean position and colour per occupied voxel of a grid of ``cells``^3 starting at ``origin``.
 
-    Grouping sorts ``voxel key << 32 | point index`` with numpy's SIMD sort (1-3 ms for 180k
-    points here, against 6-10 ms for torch.unique); the sums then go through torch's index_add_
-    over the sorted voxel ids, 5x faster here than numpy's reduceat or bincount.
+    ``xyz`` holds one row per axis (3, N), ``rgb`` is (N, 3) uint8. Grouping sorts
+    ``voxel key << 32 | point index`` with numpy's SIMD sort (1-3 ms for 180k points here,
+    against 6-10 ms for torch.unique); the sums then go through torch's index_add_ over the
+    sorted voxel ids, 5x faster here than numpy's reduceat or bincount, on rows (6, N) rather
+    than points (N, 6), which is again 1.7x faster.
     """
-    k = ((xyz - origin) / voxel_size).astype(np.int64)  # points are inside the grid: trunc = floor
-    np.clip(k, 0, cells - 1, out=k)
-    key = (k[:, 0] * cells + k[:, 1]) * cells + k[:, 2]
-    ordered = np.sort((key << 32) | np.arange(len(key)))
+    k = (xyz - torch.from_numpy(origin)[:, None]).div_(voxel_size).long().clamp_(0, cells - 1)  # inside the grid: trunc = floor
+    ordered = k[0].mul_(cells).add_(k[1]).mul_(cells).add_(k[2]).numpy()
+    ordered <<= 32
+    ordered |= np.arange(len(ordered))
+    ordered.sort()
     voxel = ordered >> 32
     first = np.empty(len(ordered), dtype=bool)
     first[0] = True
     np.not_equal(voxel[1:], voxel[:-1], out=first[1:])
-    group = torch.from_numpy(np.cumsum(first) - 1)
-    n = int(group[-1]) + 1
-    values = torch.cat([torch.from_numpy(xyz), torch.from_numpy(rgb).float()], dim=1)
-    sums = torch.zeros((n, 6)).index_add_(0, group, values.index_select(0, torch.from_numpy(ordered & 0xFFFFFFFF)))
-    means = sums / torch.bincount(group, minlength=n)[:, None]
-    return means[:, :3].numpy(), means[:, 3:].round().to(torch.uint8).numpy()
+    counts = torch.from_numpy(np.diff(np.flatnonzero(first), append=len(ordered)).astype(np.float32))
+    order = torch.from_numpy(ordered & 0xFFFFFFFF)
+    values = torch.empty((6, len(order)))  # x, y, z, r, g, b rows of the points in voxel order
+    torch.index_select(xyz, 1, order, out=values[:3])
+    values[3:] = rgb.index_select(0, order).T
+    means = torch.zeros((6, len(counts))).index_add_(1, torch.from_numpy(first).cumsum(0).sub_(1), values).div_(counts)
+    return means[:3].T.contiguous().numpy(), means[3:].round_().to(torch.uint8).T.contiguous().numpy()
 
 
 def remove_statistical_outliers(xyz: np.ndarray, neighbors: int, std_ratio: float) -> np.ndarray:
@@ -97,13 +109,14 @@ def fuse(clouds: list[CameraCloud], config: FusionConfig) -> FusedCloud:
     """World-frame fused cloud inside the workspace cube (possibly empty)."""
     center = torch.tensor(config.center, dtype=torch.float32)
     parts = [_to_world_cropped(c, center, config.half_extent) for c in clouds]
-    xyz = torch.cat([p[0] for p in parts]).numpy() if parts else np.zeros((0, 3), np.float32)
-    rgb = torch.cat([p[1] for p in parts]).numpy() if parts else np.zeros((0, 3), np.uint8)
-    if config.voxel_size > 0 and len(xyz):
+    xyz = torch.cat([p[0] for p in parts], dim=1) if parts else torch.zeros((3, 0))
+    rgb = torch.cat([p[1] for p in parts]) if parts else torch.zeros((0, 3), dtype=torch.uint8)
+    if config.voxel_size > 0 and xyz.shape[1]:
         cells = int(np.ceil(2 * config.half_extent / config.voxel_size)) + 1
         origin = np.asarray(config.center, dtype=np.float32) - np.float32(config.half_extent)
-        xyz, rgb = voxel_downsample(xyz, rgb, origin, config.voxel_size, cells)
-    fused = FusedCloud(np.ascontiguousarray(xyz, dtype=np.float32), np.ascontiguousarray(rgb))
+        fused = FusedCloud(*voxel_downsample(xyz, rgb, origin, config.voxel_size, cells))
+    else:
+        fused = FusedCloud(xyz.T.contiguous().numpy(), rgb.contiguous().numpy())
     if config.outlier_neighbors > 0:
         fused = fused.subset(remove_statistical_outliers(fused.xyz, config.outlier_neighbors, config.outlier_std_ratio))
     return fused

@@ -74,36 +74,45 @@ def render_views(
     ignored. Ties in depth go to the point with the lowest index, so the result is deterministic.
     """
     n_views, pixels = len(VIEWS), resolution * resolution
-    points = torch.from_numpy(np.ascontiguousarray(xyz, dtype=np.float32)).reshape(-1, 3)
+    # Points as one row per axis (3, N): products and tests over contiguous rows run 3-6x faster
+    # here than over (N, 3) points.
+    points = torch.from_numpy(np.ascontiguousarray(xyz, dtype=np.float32)).reshape(-1, 3).T.contiguous()
+    colours = torch.from_numpy(np.ascontiguousarray(rgb, dtype=np.uint8)).reshape(-1, 3)
     centre = torch.tensor(center, dtype=torch.float32)
-    inside = torch.nonzero(((points - centre).abs() <= half_extent).all(dim=1)).squeeze(1)  # NaN compares False
-    points = points.index_select(0, inside)
-    n = len(points)
+    inside = (points - centre[:, None]).abs_().amax(dim=0) <= half_extent  # NaN compares False
+    if not bool(inside.all()):
+        kept = torch.from_numpy(np.flatnonzero(inside.numpy()))  # numpy's SIMD nonzero: 8x torch.nonzero here
+        points, colours = points.index_select(1, kept), colours.index_select(0, kept)
+    n = points.shape[1]
     # One affine map gives, per view, the column and row in pixels and the depth in DEPTH_STEPs,
-    # all measured from the cube corner: (V, 3, N), each row contiguous.
+    # all measured from the cube corner: (V, 3, N), each row contiguous. Values are >= 0, so
+    # trunc = floor; pixel indices stay exact in float32 (< 2^24) until the final conversion.
     axes = torch.from_numpy(VIEW_AXES.reshape(-1, 3))
     scale = torch.tensor([resolution / (2 * half_extent), resolution / (2 * half_extent), 1.0 / DEPTH_STEP]).repeat(n_views)
     offset = (half_extent - axes @ centre) * scale
-    grid = torch.addmm(offset[:, None], axes * scale[:, None], points.T).long().reshape(n_views, 3, n)  # >= 0: trunc = floor
-    column, row = grid[:, 0].clamp_(max=resolution - 1), grid[:, 1].clamp_(max=resolution - 1)
-    flat = (torch.arange(n_views)[:, None] * pixels + row * resolution + column).reshape(-1)
+    grid = torch.addmm(offset[:, None], axes * scale[:, None], points).trunc_().reshape(n_views, 3, n)
+    pixel = grid[:, :2].clamp_(max=resolution - 1)
+    flat = torch.addcmul(pixel[:, 0], pixel[:, 1], torch.tensor(float(resolution)))
+    flat += (torch.arange(n_views, dtype=torch.float32) * pixels)[:, None]
 
     # One integer z-buffer pass: key = depth << 32 | point index, so the minimum per pixel is the
     # nearest point, ties going to the lowest index (deterministic), and the depth is read back
     # from the key without another gather.
     empty = torch.iinfo(torch.int64).max
-    key = (grid[:, 2] << 32) | torch.arange(n)
-    best = torch.full((n_views * pixels,), empty, dtype=torch.long).scatter_reduce_(0, flat, key.reshape(-1), "amin")
+    key = grid[:, 2].long().bitwise_left_shift_(32).bitwise_or_(torch.arange(n))
+    best = torch.full((n_views * pixels,), empty, dtype=torch.long).scatter_reduce_(0, flat.long().reshape(-1), key.reshape(-1), "amin")
     hit = best != empty
-    winner = torch.where(hit, best & 0xFFFFFFFF, n)  # n = the empty-marker row of the table below
+    winner = torch.where(hit, best & 0xFFFFFFFF, n)  # n = the empty-marker column of the table below
 
-    features = torch.full((n + 1, 6), EMPTY_VALUE)
-    colours = torch.from_numpy(np.ascontiguousarray(rgb, dtype=np.uint8)).reshape(-1, 3).index_select(0, inside)
-    features[:n, :3] = colours.float() / 255.0
-    features[:n, 3:] = points
-    depth = torch.where(hit, (best >> 32).float() * DEPTH_STEP, EMPTY_VALUE)
-    out = torch.cat([features[winner], depth[:, None], hit.float()[:, None]], dim=1)
-    return out.reshape(n_views, resolution, resolution, len(CHANNELS)).permute(0, 3, 1, 2).contiguous().numpy()
+    features = torch.full((6, n + 1), EMPTY_VALUE)  # channels r, g, b, x, y, z per point
+    features[:3, :n] = colours.T
+    features[:3, :n] /= 255.0
+    features[3:, :n] = points
+    out = torch.empty((n_views, len(CHANNELS), pixels))
+    out[:, :6] = features.index_select(1, winner).reshape(6, n_views, pixels).transpose(0, 1)
+    out[:, 6] = torch.where(hit, (best >> 32).float() * DEPTH_STEP, EMPTY_VALUE).reshape(n_views, pixels)
+    out[:, 7] = hit.reshape(n_views, pixels)
+    return out.reshape(n_views, len(CHANNELS), resolution, resolution).numpy()
 
 
 def rgb_mosaic(views: np.ndarray, background: int = 0) -> np.ndarray:

@@ -117,7 +117,7 @@ class RobotSelfFilter:
         self._posed = None
 
     def _pose(self) -> list[tuple[torch.Tensor, torch.Tensor, np.ndarray, np.ndarray]]:
-        """Per shape: world-frame plane normals (3, F) and offsets (F,) grown by the margin, and the grown world AABB."""
+        """Per shape: world-frame plane normals (F, 3) and offsets (F, 1) grown by the margin, and the grown world AABB."""
         if self._posed is None:
             pin.forwardKinematics(self.model, self._data, self._q)
             posed = []
@@ -128,8 +128,8 @@ class RobotSelfFilter:
                 offsets = shape.planes[:, 3] - normals @ t - self.margin
                 world_vertices = shape.vertices @ R.T + t
                 posed.append((
-                    torch.from_numpy(np.ascontiguousarray(normals.T, dtype=np.float32)),
-                    torch.from_numpy(offsets.astype(np.float32)),
+                    torch.from_numpy(np.ascontiguousarray(normals, dtype=np.float32)),
+                    torch.from_numpy(offsets.astype(np.float32)[:, None]),
                     world_vertices.min(axis=0) - self.margin,
                     world_vertices.max(axis=0) + self.margin,
                 ))
@@ -143,21 +143,25 @@ class RobotSelfFilter:
         posed = self._pose()
         # Most points (table, object) are far from the arm: one test against the box around the
         # whole robot leaves only a few candidates for the per-shape tests.
-        lo = np.min([p[2] for p in posed], axis=0)
-        hi = np.max([p[3] for p in posed], axis=0)
-        candidates = np.flatnonzero(_in_box(points, lo, hi))
-        near_robot = points[candidates]
-        for normals, offsets, lo, hi in posed:
-            near = np.flatnonzero(_in_box(near_robot, lo, hi))
+        lo = np.array([p[2] for p in posed])
+        hi = np.array([p[3] for p in posed])
+        candidates = np.flatnonzero(_in_box(points.T, lo.min(axis=0), hi.max(axis=0)))
+        # Candidates as one row per axis (3, M): the box tests of all shapes at once, the
+        # (F, 3) x (3, M) products and the max over planes then run along contiguous rows.
+        near_robot = np.ascontiguousarray(np.take(points, candidates, axis=0).T)
+        in_boxes = _in_box(near_robot[:, None], lo.T[..., None], hi.T[..., None])  # (shapes, M)
+        for (normals, offsets, _, _), in_box in zip(posed, in_boxes):
+            near = np.flatnonzero(in_box)
             if near.size == 0:
                 continue
             # torch (one thread) for the product: numpy's BLAS threads stalled 10x on a busy machine.
-            distances = torch.addmm(offsets, torch.from_numpy(near_robot[near]), normals)
-            inside = (distances.amax(dim=1) <= 0.0).numpy()
+            distances = torch.addmm(offsets, normals, torch.from_numpy(np.take(near_robot, near, axis=1)))
+            inside = (distances.amax(dim=0) <= 0.0).numpy()
             keep[candidates[near[inside]]] = False
         return keep
 
 
-def _in_box(points: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    x, y, z = points[:, 0], points[:, 1], points[:, 2]
+def _in_box(rows: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Which points of ``rows`` (3, ...: x, y and z of each point) lie in the box [lo, hi] (broadcast)."""
+    x, y, z = rows
     return (x >= lo[0]) & (x <= hi[0]) & (y >= lo[1]) & (y <= hi[1]) & (z >= lo[2]) & (z <= hi[2])
