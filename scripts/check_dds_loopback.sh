@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Prove that DDS stays on loopback: capture every non-loopback interface while a command runs
-# (default: the test suite) and count RTPS/DDS packets (UDP ports 7400-7700 and the SPDP
-# multicast group 239.255.0.1). Prints the count per interface; exits 1 if any was seen.
+# (default: the test suite) and count RTPS/DDS packets: UDP datagrams whose payload starts with
+# the RTPS magic "RTPS" (any domain id, any port, unicast or multicast). Prints the count per
+# interface; exits 1 if any was seen.
 # Loopback is captured too, as the control: it must show DDS traffic, else the filter is wrong.
 #   bash scripts/check_dds_loopback.sh [command ...]
 set -euo pipefail
@@ -13,7 +14,7 @@ out=$(mktemp -d)
 ifaces=$(ip -o link show | awk -F': ' '{print $2}' | cut -d@ -f1 | grep -v '^lo$')
 pids=()
 for i in lo $ifaces; do
-  $SUDO tcpdump -i "$i" -n -U -w "$out/$i.pcap" 'udp portrange 7400-7700 or dst host 239.255.0.1' 2>/dev/null &
+  $SUDO tcpdump -i "$i" -n -U -w "$out/$i.pcap" 'udp and udp[8:4] = 0x52545053' 2>/dev/null &
   pids+=($!)
 done
 sleep 1
