@@ -1,0 +1,81 @@
+"""Gripper rotation <-> 72 bins per Euler angle, the predictor's rotation classes (RVT's scheme).
+
+Conventions, stated because the authors' code got them wrong (it read (w, x, y, z) quaternions
+as (x, y, z, w)):
+
+* Quaternions are (x, y, z, w), as everywhere in this library (:mod:`actaim2.geometry`).
+  q and -q are the same rotation and give the same bins: encoding goes through the rotation.
+* Euler angles are SciPy's extrinsic ``"xyz"`` (as RVT): R = Rz(gamma) @ Ry(beta) @ Rx(alpha),
+  each angle in [-180, 180) degrees, bin k covering [-180 + 5k, -180 + 5(k+1)) and decoding
+  to its centre. Decoded quaternions have w >= 0.
+
+Error bound. Rounding each angle to its bin centre errs by <= 2.5 deg per angle, which bounds the
+geodesic error by sqrt(3) * 2.5 = 4.33 deg only where the three rotation axes are orthogonal
+(beta = 0). To first order the error is |w|^2 = da^2 + db^2 + dg^2 - 2 sin(beta) da dg: the
+roll and yaw axes align as beta nears +-90 deg (gimbal lock), and independent rounding of alpha
+and gamma then errs by up to 5.6 deg. :func:`quat_to_bins` therefore encodes a rotation as the
+bin triple whose decoded rotation is *nearest* to it, searching the 3 x 3 x 3 bins around the
+rounded angles of both Euler solutions (alpha, beta, gamma) and (alpha + 180, 180 - beta,
+gamma + 180). In the (alpha, gamma) plane the bin centres form a rhombic lattice under that
+metric, whose covering radius is at most 5 / sqrt(2) = 3.54 deg for every beta; with beta's
+2.5 deg the error stays <= sqrt(3.54^2 + 2.5^2) = 4.33 deg everywhere, gimbal region included.
+"""
+from __future__ import annotations
+
+import itertools
+import warnings
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+EULER_SEQUENCE = "xyz"  # SciPy, lower case = extrinsic: R = Rz(gamma) Ry(beta) Rx(alpha)
+ROTATION_BINS = 72
+_NEIGHBOURS = np.array(list(itertools.product((-1, 0, 1), repeat=3)))  # (27, 3)
+
+
+def bin_width(bins: int = ROTATION_BINS) -> float:
+    """Degrees per bin."""
+    return 360.0 / bins
+
+
+def bins_to_euler(bins: np.ndarray, n_bins: int = ROTATION_BINS) -> np.ndarray:
+    """(..., 3) integer bins -> (..., 3) bin-centre angles in degrees, in [-180, 180)."""
+    return (np.asarray(bins) + 0.5) * bin_width(n_bins) - 180.0
+
+
+def bins_to_quat(bins: np.ndarray, n_bins: int = ROTATION_BINS) -> np.ndarray:
+    """(N, 3) bins -> (N, 4) unit quaternions (x, y, z, w) with w >= 0."""
+    angles = bins_to_euler(np.asarray(bins).reshape(-1, 3), n_bins)
+    q = Rotation.from_euler(EULER_SEQUENCE, angles, degrees=True).as_quat()
+    return np.where(q[:, 3:] < 0, -q, q)
+
+
+def _euler_solutions(rotations: Rotation) -> np.ndarray:
+    """(N, 2, 3) both Euler-angle solutions in degrees (the second has |beta| >= 90)."""
+    with warnings.catch_warnings():  # at gimbal lock SciPy warns and sets gamma = 0: still a valid solution
+        warnings.simplefilter("ignore", UserWarning)
+        first = rotations.as_euler(EULER_SEQUENCE, degrees=True).reshape(-1, 3)
+    second = np.stack([first[:, 0] + 180.0, 180.0 - first[:, 1], first[:, 2] + 180.0], axis=-1)
+    return np.stack([first, second], axis=1)
+
+
+def quat_to_bins(quat_xyzw: np.ndarray, n_bins: int = ROTATION_BINS) -> np.ndarray:
+    """(N, 4) quaternions (x, y, z, w), any sign and norm -> (N, 3) int64 bins, nearest in angle.
+
+    See the module docstring for why the search (54 candidates per rotation) is needed.
+    """
+    rotations = Rotation.from_quat(np.asarray(quat_xyzw, dtype=np.float64).reshape(-1, 4))
+    n = len(rotations)
+    rounded = np.floor((_euler_solutions(rotations) + 180.0) / bin_width(n_bins)).astype(np.int64)  # (N, 2, 3)
+    candidates = ((rounded[:, :, None, :] + _NEIGHBOURS[None, None]) % n_bins).reshape(n, -1, 3)  # (N, 54, 3)
+    decoded = Rotation.from_euler(EULER_SEQUENCE, bins_to_euler(candidates.reshape(-1, 3), n_bins), degrees=True)
+    repeated = Rotation.from_quat(np.repeat(rotations.as_quat(), candidates.shape[1], axis=0))
+    error = (decoded.inv() * repeated).magnitude().reshape(n, -1)
+    return candidates[np.arange(n), error.argmin(axis=1)]
+
+
+def geodesic_deg(q_a: np.ndarray, q_b: np.ndarray) -> np.ndarray:
+    """(N,) angle in degrees between two (N, 4) arrays of (x, y, z, w) quaternions."""
+    a = Rotation.from_quat(np.asarray(q_a, dtype=np.float64).reshape(-1, 4))
+    b = Rotation.from_quat(np.asarray(q_b, dtype=np.float64).reshape(-1, 4))
+    return np.degrees((a.inv() * b).magnitude())
