@@ -31,6 +31,7 @@ import signal
 import threading
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import rclpy
@@ -60,6 +61,7 @@ from actaim2.sim.joint_trajectory import (
     validate,
 )
 from actaim2.sim.objects.catalog import category_instances, list_categories
+from actaim2.sim.objects.loader import ObjectLoadError
 from actaim2.sim.sensor_noise import SensorNoise
 from actaim2_perception.pointcloud2 import to_msg as cloud_to_msg
 from actaim2_perception.transforms import StaticTransformPublisher, matrix_to_transform
@@ -409,26 +411,40 @@ class SimNode(Node):
     # -- scene --------------------------------------------------------------------------------
     def _on_reset_scene(self, request: ResetScene.Request, response: ResetScene.Response) -> ResetScene.Response:
         response.success = False
-        category = request.category or self._category
-        if category not in list_categories():
-            response.message = f"unknown category '{category}'; valid categories: {', '.join(list_categories())}"
-            return response
-        instances = category_instances(category)
-        # DESIGN.md: instance -1 draws one from the request's seed (reproducible random objects).
-        instance = request.instance if request.instance >= 0 else int(np.random.default_rng(request.seed).choice(instances))
-        if instance not in instances:
-            response.message = (f"unknown instance {request.instance} of '{category}'; "
-                                f"valid instances: {instances[0]}..{instances[-1]} (or -1: drawn from the seed)")
-            return response
         if not (np.isfinite(request.dof_fraction) and 0.0 <= request.dof_fraction <= 1.0):
             response.message = f"dof_fraction must be within [0, 1], got {request.dof_fraction}"
             return response
+        if request.object_path:
+            # A user's PartNet-Mobility folder overrides category/instance (DESIGN.md).
+            target = dict(folder=Path(request.object_path).expanduser())
+            category = self._category
+        else:
+            category = request.category or self._category
+            if category not in list_categories():
+                response.message = f"unknown category '{category}'; valid categories: {', '.join(list_categories())}"
+                return response
+            instances = category_instances(category)
+            # DESIGN.md: instance -1 draws one from the request's seed (reproducible random objects).
+            instance = request.instance if request.instance >= 0 else int(np.random.default_rng(request.seed).choice(instances))
+            if instance not in instances:
+                response.message = (f"unknown instance {request.instance} of '{category}'; "
+                                    f"valid instances: {instances[0]}..{instances[-1]} (or -1: drawn from the seed)")
+                return response
+            target = dict(category=category, instance=instance)
         with self._lock:
-            info = self.env.reset(category, instance, request.seed, request.dof_fraction)
-            self._category = category
+            try:
+                info = self.env.reset(seed=request.seed, dof_fraction=request.dof_fraction, **target)
+            except (ObjectLoadError, ValueError) as error:
+                response.message = f"cannot load {request.object_path or category}: {error}"
+                self.get_logger().error(response.message)
+                return response
+            if not request.object_path:
+                self._category = category
             self.arm.hold(self.env.robot.arm_positions())
             self._abort_goals("scene reset")
-        self._next_camera_time = self.env.time  # views of the new scene as soon as possible
+            # Every observation published from now on is rendered from the new scene.
+            self._next_camera_time = self.env.time
+            response.stamp = sim_time_msg(self.env.time)
         self.get_logger().info(f"scene reset: {info.object_id} (seed {info.seed}, dof_fraction {request.dof_fraction:.2f})")
         response.success = True
         response.message = f"loaded {info.object_id}"

@@ -15,7 +15,7 @@ COMMANDS: dict[tuple[str, ...], tuple[str, str]] = {
     ("bench", "sim"): ("actaim2.bench.sim", "physics steps/s, render ms per camera, ring5 observation"),
     ("bench", "perception"): ("actaim2.bench.perception", "clouds-in to views-out latency, in-process and through the node"),
     ("bench", "control"): ("actaim2.bench.control", "IK success and latency, Ruckig time, straight-line deviation"),
-    ("expert",): ("actaim2.sim.expert_eval", "scripted expert success per category (proves the objects are manipulable)"),
+    ("expert",): ("actaim2.rollout.expert_eval", "scripted expert success per category (proves the objects are manipulable)"),
     ("render",): ("actaim2.perception.render_cli", "render a bag or saved cloud into orthographic PNG views"),
     ("collect",): ("actaim2.data.collect_cli", "self-supervised data collection in simulation"),
     ("stats",): ("actaim2.data.stats_cli", "statistics of a collected dataset"),

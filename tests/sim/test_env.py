@@ -6,6 +6,7 @@ import pytest
 
 from actaim2.sim.env import SimEnv
 from actaim2.sim.objects import catalog
+from actaim2.sim.objects.loader import ObjectLoadError
 
 
 @pytest.fixture(scope="module")
@@ -87,7 +88,7 @@ def test_bad_requests_are_refused_clearly(env, tmp_path):
         env.reset("door", 0, dof_fraction=1.5)
     with pytest.raises(ValueError, match="category"):
         env.reset()
-    with pytest.raises(FileNotFoundError, match="mobility.urdf"):
+    with pytest.raises(ObjectLoadError, match="mobility.urdf"):
         env.reset(folder=tmp_path)
     with pytest.raises(RuntimeError, match="no cameras"):
         env.observe()

@@ -6,7 +6,7 @@ import pytest
 import sapien
 
 from actaim2.sim.objects import catalog
-from actaim2.sim.objects.loader import aabb, load_object
+from actaim2.sim.objects.loader import ObjectLoadError, aabb, load_object
 from actaim2.sim.objects.model import read_handles, read_meta
 
 
@@ -110,5 +110,5 @@ def test_folder_without_annotations_loads_and_bad_folders_are_refused(tmp_path, 
         assert aabb(obj.articulation)[0][0] == pytest.approx(0.6, abs=1e-3)
     finally:
         scene.remove_articulation(obj.articulation)
-    with pytest.raises(FileNotFoundError, match="mobility.urdf"):
+    with pytest.raises(ObjectLoadError, match="mobility.urdf"):
         load_object(scene, tmp_path)

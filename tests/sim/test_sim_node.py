@@ -60,6 +60,10 @@ class Inbox:
         return self.messages
 
 
+def stamp_ns(stamp) -> int:
+    return stamp.sec * 10**9 + stamp.nanosec
+
+
 def tf_static_chain(messages: list[TFMessage], child: str) -> np.ndarray:
     """T_world_child composed from every /tf_static edge received."""
     edges = {t.child_frame_id: (t.header.frame_id, transform_to_matrix(t)) for m in messages for t in m.transforms}
@@ -302,9 +306,16 @@ def test_reset_scene_answers_bad_requests_and_reports_dof_limits(kinect_node, ro
     assert not response.success and "valid instances" in response.message
     response = call(category="storage_furniture", instance=0, dof_fraction=1.5)
     assert not response.success and "dof_fraction" in response.message
+    response = call(object_path="/nonexistent/object", dof_fraction=0.5)
+    assert not response.success and "/nonexistent/object" in response.message and "mobility.urdf" in response.message
+    clouds = Inbox(ros_node, PointCloud2, "/points2", qos_profile_sensor_data)
     response = call(category="door", instance=1, seed=3, dof_fraction=0.25)
     assert response.success, response.message
     assert response.object_id == "door_001"
+    # DESIGN.md: observations stamped at or after the reset's stamp show the new scene.
+    reset_ns = stamp_ns(response.stamp)
+    assert reset_ns > 0
+    assert wait_for(lambda: any(stamp_ns(m.header.stamp) >= reset_ns for m in clouds.messages), 30.0)
     n = len(response.dof_names)
     assert n >= 1 and len(response.dof_lower) == len(response.dof_upper) == len(response.dof_initial) == n
     lower, upper, initial = map(np.array, (response.dof_lower, response.dof_upper, response.dof_initial))

@@ -1,7 +1,7 @@
 """`actaim2 bench sim`: physics rate, camera render time per path, real-time factor.
 
 Measured on the default scene (Panda + storage_furniture instance 0, 240 Hz physics):
-  * physics steps/s and real-time factor (actaim2.sim.physics_bench): holding, executing a
+  * physics steps/s and real-time factor (actaim2.bench.physics): holding, executing a
     trajectory (the target's workload), and the expert manipulating a drawer; no cameras;
   * ms per camera frame for each render path (``sapien`` on Vulkan/lavapipe, ``raycast`` with
     Open3D): one 320x240 camera, the Azure Kinect's 320x288, a full ring5 observation with and
@@ -98,7 +98,7 @@ def _bench_path(path: str, args) -> dict[str, float]:
 
 
 def main(args: argparse.Namespace) -> int:
-    from actaim2.sim.physics_bench import markdown, run_physics_bench
+    from actaim2.bench.physics import markdown, run_physics_bench
     from actaim2.sim.render_path import vulkan_device_error
 
     physics = run_physics_bench("panda", args.seconds)

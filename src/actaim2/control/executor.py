@@ -1,7 +1,7 @@
 """Running keyposes: plan with :class:`KeyposePlanner`, execute through a pluggable executor.
 
 The executor is whatever moves the arm: the control node's ROS action clients
-(FollowJointTrajectory, GripperCommand) or :class:`actaim2.control.sim_executor.SimEnvExecutor`
+(FollowJointTrajectory, GripperCommand) or :class:`actaim2.rollout.sim_executor.SimEnvExecutor`
 calling the simulator directly for data collection. It only needs the three methods of
 :class:`Executor`; everything else (phases, gripper bookkeeping, errors) lives here, once.
 """

@@ -44,7 +44,7 @@ from actaim2.control.executor import KeyposeRunner
 from actaim2.control.ik import IKOptions, IKSolver
 from actaim2.control.model import RobotModel
 from actaim2.control.planner import KeyposePlanner
-from actaim2.control.sim_executor import SimEnvExecutor
+from actaim2.rollout.sim_executor import SimEnvExecutor
 from actaim2.data.actions import ActionSequence, Sampler
 from actaim2.data.gmm_sampler import GMMAdaptiveSampler, GMMConfig
 from actaim2.data.grasp_sampler import HeuristicGraspSampler

@@ -1,7 +1,7 @@
 """How well the scripted expert manipulates the object library: a markdown table per category.
 
-    python -m actaim2.sim.expert_eval                      # every category, every instance, Panda
-    python -m actaim2.sim.expert_eval --categories door box --robot kinova_j2s6s200
+    python -m actaim2.rollout.expert_eval                      # every category, every instance, Panda
+    python -m actaim2.rollout.expert_eval --categories door box --robot kinova_j2s6s200
 
 For every instance and every movable part with a handle, the expert moves the part both ways
 (open and close) from the half-open state, each time after a fresh reset. An instance
@@ -28,7 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from actaim2.sim.env import SimEnv
-    from actaim2.sim.expert import ScriptedExpert, expert_tasks
+    from actaim2.rollout.expert import ScriptedExpert, expert_tasks
     from actaim2.sim.objects.catalog import category_instances
 
     env = SimEnv(args.robot)
@@ -75,6 +75,6 @@ def main(args: argparse.Namespace) -> int:
 
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(prog="python -m actaim2.sim.expert_eval", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m actaim2.rollout.expert_eval", description=__doc__.splitlines()[0])
     add_arguments(parser)
     sys.exit(main(parser.parse_args()))

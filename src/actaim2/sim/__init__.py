@@ -4,10 +4,10 @@
   scene          the SAPIEN world: physics (+ render) system, ground, lights, robot, object
   robot          the arm as PD-driven articulation, gravity compensation, friction-only gripper
   objects/       the articulated-object library (generated, PartNet-Mobility layout) and loader
-  expert         scripted expert with privileged state; expert_eval: its success table
   success        the paper's success criterion (some DoF moved > 30% of its range)
   joint_trajectory, gripper_action   ros2_control-like trajectory and gripper semantics
   cameras, observe, render_*, sensor_noise   camera rigs and the two render paths
-  physics_bench  physics steps/s and real-time factor
   urdf           visual-free URDF copies for physics-only scenes
+
+The scripted expert and the SimEnv executor use both sim and control: see :mod:`actaim2.rollout`.
 """

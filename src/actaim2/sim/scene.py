@@ -62,9 +62,11 @@ class SimScene:
         if self.object is not None and self.object.folder == folder and self.object.scale == scale:
             place(self.object, recommended_front_distance(folder) if front_distance is None else front_distance, lateral, yaw)
             return self.object
+        # Load before removing: a folder that fails to load leaves the current scene as it was.
+        loaded = load_object(self.scene, folder, front_distance=front_distance, lateral=lateral, yaw=yaw, scale=scale,
+                             keep_visuals=self.render)
         self.remove_object()
-        self.object = load_object(self.scene, folder, front_distance=front_distance, lateral=lateral, yaw=yaw, scale=scale,
-                                  keep_visuals=self.render)
+        self.object = loaded
         return self.object
 
     def remove_object(self) -> None:

@@ -75,6 +75,11 @@ class LoadedObject:
         return names.index(joint_name)
 
 
+class ObjectLoadError(ValueError):
+    """An object folder that cannot be loaded (missing, no URDF, bad URDF, missing mesh...): the
+    message says which file and why, so a service can answer it instead of crashing."""
+
+
 def load_object(
     scene: sapien.Scene,
     folder: Path,
@@ -88,7 +93,7 @@ def load_object(
     folder = Path(folder)
     urdf = folder / "mobility.urdf"
     if not urdf.is_file():
-        raise FileNotFoundError(f"{folder} is not a PartNet-Mobility style object folder: no mobility.urdf")
+        raise ObjectLoadError(f"{folder} is not a PartNet-Mobility style object folder: no mobility.urdf")
     meta = read_meta(folder)
     loader = scene.create_urdf_loader()
     loader.fix_root_link = True
@@ -97,18 +102,22 @@ def load_object(
     loader.set_material(OBJECT_FRICTION, OBJECT_FRICTION, 0.0)
     builders, actor_builders, _ = parse_urdf(loader, urdf, keep_visuals=keep_visuals)
     if len(builders) != 1 or actor_builders:
-        raise ValueError(f"{urdf}: expected one articulation, got {len(builders)} articulations and {len(actor_builders)} free bodies")
+        raise ObjectLoadError(f"{urdf}: expected one articulation, got {len(builders)} articulations and {len(actor_builders)} free bodies")
     articulation = builders[0].build()
-    articulation.name = meta.get("anno_id", folder.name)
-    joints = articulation.get_active_joints()
-    if not joints:
-        raise ValueError(f"{urdf}: the object has no movable joint")
-    _apply_joint_friction(urdf, joints)
-    for link in articulation.links:
-        link.disable_gravity = True
-    limits = np.asarray([j.limit[0] for j in joints], dtype=float)
-    if not np.all(np.isfinite(limits)):
-        raise ValueError(f"{urdf}: every movable joint needs finite limits (continuous joints are not supported)")
+    try:
+        articulation.name = meta.get("anno_id", folder.name)
+        joints = articulation.get_active_joints()
+        if not joints:
+            raise ObjectLoadError(f"{urdf}: the object has no movable joint")
+        _apply_joint_friction(urdf, joints)
+        for link in articulation.links:
+            link.disable_gravity = True
+        limits = np.asarray([j.limit[0] for j in joints], dtype=float)
+        if not np.all(np.isfinite(limits)):
+            raise ObjectLoadError(f"{urdf}: every movable joint needs finite limits (continuous joints are not supported)")
+    except ObjectLoadError:
+        scene.remove_articulation(articulation)  # a refused object leaves nothing behind in the scene
+        raise
     obj = LoadedObject(folder, articulation.name, meta.get("model_cat", "unknown"), articulation, joints,
                        limits[:, 0].copy(), limits[:, 1].copy(), read_handles(folder), scale)
     place(obj, recommended_front_distance(folder) if front_distance is None else front_distance, lateral, yaw)
