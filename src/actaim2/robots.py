@@ -4,7 +4,8 @@ The canonical TCP frame (DESIGN.md) has its origin between the fingertips, z alo
 approach direction and y along the finger closing direction. Every preset maps it onto its
 own flange link with a fixed transform ``T_flange_tcp``, so keyposes mean the same thing on
 every robot. Simulation (SAPIEN), control (Pinocchio) and perception (self-filter) all read
-the robot from here.
+the robot from here; data collection also reads where the arm reaches and the open hand's
+shape (:class:`Reach`, :class:`HandGeometry`) to sample actions this robot can carry out.
 """
 from __future__ import annotations
 
@@ -26,6 +27,62 @@ def example_robot_data_dir() -> Path:
 
 
 @dataclass(frozen=True)
+class Reach:
+    """Where the tcp can go: a spherical shell around the shoulder (the second joint's origin).
+
+    ``max`` is 0.866 x the largest tcp distance from the shoulder over 20000 random joint
+    configurations (Panda: 0.947 m -> 0.82 m, a margin that leaves room for orientation);
+    ``min`` keeps targets off the arm folded onto itself.
+    """
+
+    center: tuple[float, float, float]  # shoulder, in `world` (the root link frame)
+    min: float  # m
+    max: float  # m
+
+
+@dataclass(frozen=True)
+class HandGeometry:
+    """The open hand as boxes in the canonical `tcp` frame (z approach, y finger closing).
+
+    Samplers see objects only as points, so "would the hand collide here" and "what lies
+    between the fingers" are questions about which points fall into which box. Each preset's
+    numbers are fitted to its URDF collision meshes with the gripper open (measured in
+    tests/data/test_robot_hands.py): two finger boxes at +-y from ``max_opening / 2`` outwards,
+    reaching from the tcp back ``finger_length``, and a palm box behind them.
+    """
+
+    max_opening: float  # m between the finger boxes' inner faces
+    finger_length: float  # along z, back from the tcp
+    finger_thickness: float  # along y, each finger
+    finger_width: float  # along x
+    palm_depth: float  # along z, behind the fingers
+    palm_width: float  # along y
+    palm_thickness: float  # along x
+    approach_distance: float  # m the straight approach runs along z before the tcp reaches p1 (clears the fingers)
+
+    def boxes(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """name -> (min corner, max corner) in the tcp frame, fingers open."""
+        half = self.max_opening / 2.0
+        fx, px = self.finger_width / 2.0, self.palm_thickness / 2.0
+        z_base = -self.finger_length
+        return {
+            "finger_left": (np.array([-fx, half, z_base]), np.array([fx, half + self.finger_thickness, 0.0])),
+            "finger_right": (np.array([-fx, -half - self.finger_thickness, z_base]), np.array([fx, -half, 0.0])),
+            "palm": (np.array([-px, -self.palm_width / 2, z_base - self.palm_depth]), np.array([px, self.palm_width / 2, z_base])),
+        }
+
+    def hand_extent(self) -> np.ndarray:
+        """Half-widths (x, y) and depth behind the tcp (z) of the box holding the whole open hand."""
+        half_y = max(self.palm_width / 2, self.max_opening / 2 + self.finger_thickness)
+        return np.array([max(self.palm_thickness, self.finger_width) / 2, half_y, self.finger_length + self.palm_depth])
+
+    def closing_region(self) -> tuple[np.ndarray, np.ndarray]:
+        """The space swept by the closing fingers: what lies here gets grasped."""
+        half, fx = self.max_opening / 2.0, self.finger_width / 2.0
+        return np.array([-fx, -half, -self.finger_length]), np.array([fx, half, 0.0])
+
+
+@dataclass(frozen=True)
 class RobotSpec:
     """Everything the project needs to know about one arm + parallel gripper."""
 
@@ -44,6 +101,8 @@ class RobotSpec:
     max_velocity: np.ndarray  # rad/s per arm joint
     max_acceleration: np.ndarray  # rad/s^2
     max_jerk: np.ndarray  # rad/s^3
+    reach: Reach | None = None  # for sampling actions (data collection); None: not given for this robot
+    hand: HandGeometry | None = None
     extra: dict = field(default_factory=dict)
 
 
@@ -68,6 +127,12 @@ def _panda() -> RobotSpec:
         max_velocity=np.array([2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61]),
         max_acceleration=np.array([15.0, 7.5, 10.0, 12.5, 15.0, 20.0, 20.0]),
         max_jerk=np.array([7500.0, 3750.0, 5000.0, 6250.0, 7500.0, 10000.0, 10000.0]),
+        reach=Reach(center=(0.0, 0.0, 0.333), min=0.3, max=0.82),  # datasheet reach 0.855 m
+        # Franka Hand: 80 mm stroke, fingers (collision boxes) from z = -0.045 to the tcp, |y|
+        # 0.04..0.066, x +-0.011; a 0.2 m wide hand body behind them (y +-0.104, z -0.129 ..
+        # -0.097 between the fingers, its sides forward to -0.037; x +-0.032).
+        hand=HandGeometry(max_opening=0.08, finger_length=0.054, finger_thickness=0.026, finger_width=0.022,
+                          palm_depth=0.075, palm_width=0.21, palm_thickness=0.07, approach_distance=0.12),
     )
 
 
@@ -119,6 +184,15 @@ def _kinova_j2s6s200() -> RobotSpec:
         max_velocity=max_velocity,
         max_acceleration=4.0 * max_velocity,
         max_jerk=40.0 * max_velocity,
+        reach=Reach(center=(0.0, 0.0, 0.2755), min=0.3, max=0.87),  # tcp at most 1.006 m from the shoulder
+        # Open (0 rad) the fingers splay: the distal phalanges' inner faces at |y| >= 0.061 m, the
+        # proximal ones' at 0.024 m where they leave the hand (z = -0.06, where the hand body
+        # starts: the palm box) and 0.04 m halfway; out to |y| = 0.106, x +-0.0115, forward to
+        # z = -0.018 (closing swings them to the tcp). Hand body (link_6): z -0.18..-0.06,
+        # y +-0.054, x -0.034..0.029; the palm box also holds the proximal phalanges' roots.
+        # Longer fingers than Panda's: the straight approach starts 0.03 m further back.
+        hand=HandGeometry(max_opening=0.08, finger_length=0.06, finger_thickness=0.066, finger_width=0.023,
+                          palm_depth=0.12, palm_width=0.15, palm_thickness=0.068, approach_distance=0.15),
     )
 
 
@@ -185,7 +259,9 @@ def load_robot_spec(name_or_yaml: str) -> RobotSpec:
     ``tcp_offset_xyz`` and ``tcp_offset_quat_xyzw`` (T_flange_tcp), ``gripper_open``,
     ``gripper_closed``, optional ``home``, ``name`` and limits. Missing velocity limits are
     the URDF's; missing acceleration and jerk limits follow the conservative rule of the
-    Kinova preset (4 x and 40 x the velocity limit)."""
+    Kinova preset (4 x and 40 x the velocity limit). Data collection also needs ``reach``
+    ({center, min, max}) and ``hand`` (the :class:`HandGeometry` fields); a robot without
+    them can be simulated and controlled but not sampled for."""
     if name_or_yaml in PRESETS:
         return PRESETS[name_or_yaml]()
     path = Path(name_or_yaml)
@@ -218,6 +294,9 @@ def load_robot_spec(name_or_yaml: str) -> RobotSpec:
         max_velocity=velocity,
         max_acceleration=np.asarray(cfg.get("max_acceleration", 4.0 * velocity), dtype=float),
         max_jerk=np.asarray(cfg.get("max_jerk", 40.0 * velocity), dtype=float),
+        reach=Reach(tuple(float(v) for v in cfg["reach"]["center"]), float(cfg["reach"]["min"]), float(cfg["reach"]["max"]))
+        if "reach" in cfg else None,
+        hand=HandGeometry(**{k: float(v) for k, v in cfg["hand"].items()}) if "hand" in cfg else None,
     )
 
 

@@ -1,6 +1,8 @@
 """Samplers on synthetic clouds: random (filters), heuristic grasp (antipodal on a handle), GMM (equal per cluster)."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -8,9 +10,14 @@ from actaim2.data.actions import ActionSequence
 from actaim2.data.gmm_sampler import GMMAdaptiveSampler, GMMConfig
 from actaim2.data.grasp import AntipodalGraspProposer
 from actaim2.data.grasp_sampler import HeuristicGraspSampler
-from actaim2.data.gripper import GripperGeometry, collides
+from actaim2.data.grasp import AntipodalConfig
+from actaim2.data.gripper import collides
 from actaim2.data.object_cloud import CloudConfig, ObjectCloud, part_segments
 from actaim2.data.random_sampler import RandomSampler, SamplingConfig
+from actaim2.robots import load_robot_spec
+
+PANDA = SamplingConfig.for_robot(load_robot_spec("panda"))
+KINOVA = SamplingConfig.for_robot(load_robot_spec("kinova_j2s6s200"))
 
 HANDLE_CENTER = np.array([0.56, 0.0, 0.6])  # a horizontal bar 4 cm in front of a door at x = 0.6
 HANDLE_RADIUS = 0.01
@@ -31,7 +38,7 @@ def test_handle_is_segmented_and_grasped_antipodally(door_with_handle):
     segments = part_segments(door_with_handle, CloudConfig(center=(0.6, 0.0, 0.5)), rng)
     assert len(segments) == 1  # the door face is a plane, removed; the bar is left
     assert np.abs(door_with_handle.points[segments[0]] - HANDLE_CENTER).max() < 0.09
-    grasps = AntipodalGraspProposer().propose(door_with_handle, segments[0], 0, rng)
+    grasps = AntipodalGraspProposer(AntipodalConfig(PANDA.gripper, PANDA.reach.center)).propose(door_with_handle, segments[0], 0, rng)
     assert grasps
     best = max(grasps, key=lambda g: g.score)
     T = best.T_world_tcp
@@ -41,21 +48,40 @@ def test_handle_is_segmented_and_grasped_antipodally(door_with_handle):
     assert T[:3, 2] @ [1.0, 0.0, 0.0] > 0.5  # approaching from the robot's side (robot at the origin)
     offset = T[:3, 3] - HANDLE_CENTER
     assert np.hypot(offset[0], offset[2]) < 0.012  # the bar sits between the fingertips
-    assert not collides(GripperGeometry(), door_with_handle.points, T)
+    assert not collides(PANDA.gripper, door_with_handle.points, T)
 
 
-def test_grasp_sampler_builds_a_full_action_on_the_handle(door_with_handle):
-    sampler = HeuristicGraspSampler(CloudConfig(center=(0.6, 0.0, 0.5)))
+@pytest.mark.parametrize("config", [PANDA, KINOVA], ids=["panda", "kinova_j2s6s200"])
+def test_grasp_sampler_builds_a_full_action_on_the_handle(door_with_handle, config):
+    sampler = HeuristicGraspSampler(CloudConfig(center=(0.6, 0.0, 0.5)), config)
     action = sampler.sample(door_with_handle, np.random.default_rng(1), 0)
     assert action is not None
     assert np.linalg.norm(action.p1 - HANDLE_CENTER) < 0.09
     kp = action.keyposes()
     assert [k.gripper_closed for k in kp] == [False, False, True, True]
-    np.testing.assert_allclose(kp[0].position, action.p1 - 0.12 * action.R0[:, 2])  # p0 on the approach axis
+    # p0 on the approach axis, the robot's approach distance back (Kinova's longer fingers: further)
+    np.testing.assert_allclose(kp[0].position, action.p1 - config.gripper.approach_distance * action.R0[:, 2])
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = action.R0, action.p1
+    assert not collides(config.gripper, door_with_handle.points, T, config.collision_tolerance)
 
 
-def test_random_sampler_respects_reach_and_collisions(door_with_handle):
-    config = SamplingConfig()
+def test_samplers_use_the_robot_preset():
+    """Reach, hand and approach differ between the presets, and sampling reads them from the preset."""
+    assert KINOVA.reach != PANDA.reach and KINOVA.gripper != PANDA.gripper
+    assert KINOVA.start_distance == 0.15 and PANDA.start_distance == 0.12
+    shoulder_k, shoulder_p = np.asarray(KINOVA.reach.center), np.asarray(PANDA.reach.center)
+    beyond_panda = shoulder_p + np.array([PANDA.reach.max + 0.02, 0.0, 0.0])  # in the Jaco2's longer reach only
+    assert KINOVA.reachable(beyond_panda) and not PANDA.reachable(beyond_panda)
+    assert np.linalg.norm(beyond_panda - shoulder_k) < KINOVA.reach.max
+    grasp = HeuristicGraspSampler(CloudConfig(center=(0.6, 0.0, 0.5)), KINOVA)
+    assert grasp.proposer.config.gripper == KINOVA.gripper and grasp.proposer.config.reach_center == KINOVA.reach.center
+    with pytest.raises(ValueError, match="no hand geometry"):
+        SamplingConfig.for_robot(replace(load_robot_spec("panda"), hand=None))
+
+
+@pytest.mark.parametrize("config", [PANDA, KINOVA], ids=["panda", "kinova_j2s6s200"])
+def test_random_sampler_respects_reach_and_collisions(door_with_handle, config):
     sampler = RandomSampler(config)
     rng = np.random.default_rng(2)
     for _ in range(10):
@@ -92,7 +118,7 @@ def test_gmm_samples_equally_from_every_cluster():
             a = ActionSequence(p1_centres[k] + rng.normal(0, 0.01, 3), p1_centres[k] + [-0.15, 0, 0], np.diag([1.0, -1.0, -1.0]), 0.12)
             actions.append(a.vector())
     z, actions = np.concatenate(z), np.array(actions)
-    sampler = GMMAdaptiveSampler(actions, z, np.ones(len(z), bool), GMMConfig(max_clusters=5), SamplingConfig(), seed=0)
+    sampler = GMMAdaptiveSampler(actions, z, np.ones(len(z), bool), GMMConfig(max_clusters=5), PANDA, seed=0)
     assert sampler.n_clusters == 3 and sorted(sampler.cluster_sizes.tolist()) == sorted(sizes)
     empty = ObjectCloud(np.zeros((0, 3)), np.zeros((0, 3), np.uint8))
     drawn = [sampler.sample(empty, rng, i) for i in range(30)]
@@ -107,5 +133,5 @@ def test_gmm_falls_back_to_all_trajectories_without_enough_successes():
     rng = np.random.default_rng(5)
     actions = np.array([ActionSequence(np.array([0.5, 0.0, 0.4]) + rng.normal(0, 0.02, 3), np.array([0.4, 0, 0.4]), np.eye(3), 0.12).vector()
                         for _ in range(20)])
-    sampler = GMMAdaptiveSampler(actions, rng.normal(size=(20, 8)), np.zeros(20, bool), seed=0)
+    sampler = GMMAdaptiveSampler(actions, rng.normal(size=(20, 8)), np.zeros(20, bool), GMMConfig(), PANDA, seed=0)
     assert not sampler.used_successes_only and sampler.n_clusters >= 1

@@ -55,6 +55,7 @@ from actaim2.data.splits import TRAIN, check_no_leak, split_of
 from actaim2.data.stats import RUNS_FILE
 from actaim2.data.storage import DatasetReader, DatasetWriter, EncodedTrajectory, encode_trajectory, trajectory_id
 from actaim2.data.trajectory import CameraImage, ObjectState, Observation, Trajectory
+from actaim2.robots import load_robot_spec
 from actaim2.sim.env import WORKSPACE_CENTER, SimEnv
 from actaim2.sim.objects.catalog import object_id
 
@@ -121,7 +122,7 @@ class TrajectoryCollector:
         # Screening samples needs no exhaustive search: few restarts, the planner retries properly.
         self.screen_ik = IKSolver(robot, checker, IKOptions(restarts=PRECHECK_IK_RESTARTS))
         self.cloud_config = CloudConfig(center=tuple(float(v) for v in WORKSPACE_CENTER))
-        sampling = SamplingConfig()
+        sampling = SamplingConfig.for_robot(self.env.spec)
         self.samplers: dict[str, Sampler] = {"random": RandomSampler(sampling), "grasp": HeuristicGraspSampler(self.cloud_config, sampling)}
         self.executor = SimEnvExecutor(self.env)
 
@@ -325,6 +326,7 @@ def fit_gmm_samplers(config: CollectConfig, round_start: int) -> dict[str, GMMAd
         z = dict(zip(f["ids"].tolist(), f["z"]))
     before = sorted((e for e in reader.entries if e["sampler"] != "gmm" or e["index"] < round_start), key=lambda e: e["id"])
     scores, _, threshold = visual_labels(before, z, TRAIN)
+    sampling = SamplingConfig.for_robot(load_robot_spec(config.robot))
     by_object: dict[str, list[int]] = {}
     for k, e in enumerate(before):
         by_object.setdefault(e["object_id"], []).append(k)
@@ -334,7 +336,7 @@ def fit_gmm_samplers(config: CollectConfig, round_start: int) -> dict[str, GMMAd
             continue
         samplers[oid] = GMMAdaptiveSampler(
             np.array([before[k]["action"] for k in rows]), np.stack([z[before[k]["id"]] for k in rows]),
-            scores[rows] > threshold, config.gmm, SamplingConfig(), seed=derive_seed(config.seed, oid, 0, round_start))
+            scores[rows] > threshold, config.gmm, sampling, seed=derive_seed(config.seed, oid, 0, round_start))
     return samplers
 
 
@@ -345,6 +347,7 @@ def collect(config: CollectConfig) -> dict:
     # One intra-op thread here too: on a loaded 2-core machine, two threads made encoder
     # training 5x slower (1.8 s against 0.36 s per step, measured) instead of faster.
     torch.set_num_threads(1)
+    SamplingConfig.for_robot(load_robot_spec(config.robot))  # a robot without reach or hand geometry fails here, not in a worker
     n_gmm = config.per_object.get("gmm", 0)
     if n_gmm > 0 and not any(split_of(c, i) == TRAIN for c, i in config.objects):
         raise ValueError(f"GMM-adaptive sampling needs visual labels, whose threshold is calibrated on {TRAIN} "

@@ -37,7 +37,7 @@ class GMMAdaptiveSampler:
     name = "gmm"
 
     def __init__(self, actions: np.ndarray, embeddings: np.ndarray, success: np.ndarray,
-                 config: GMMConfig = GMMConfig(), sampling: SamplingConfig = SamplingConfig(), seed: int = 0):
+                 config: GMMConfig, sampling: SamplingConfig, seed: int = 0):
         """``actions``: (M, 13) :meth:`ActionSequence.vector` rows; ``embeddings``: (M, D) task
         embeddings z; ``success``: (M,) visual labels. Fitting is deterministic given ``seed``."""
         actions, embeddings, success = np.asarray(actions, float), np.asarray(embeddings, float), np.asarray(success, bool)

@@ -9,14 +9,15 @@ friction cone). A learned proposer only has to implement :class:`GraspProposer`.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from actaim2.data.gripper import GripperGeometry, collides, points_in_tcp, tcp_pose
+from actaim2.data.gripper import collides, points_in_tcp, tcp_pose
 from actaim2.data.object_cloud import ObjectCloud, estimate_normals
+from actaim2.robots import HandGeometry
 
 
 @dataclass
@@ -36,6 +37,8 @@ class GraspProposer(Protocol):
 
 @dataclass(frozen=True)
 class AntipodalConfig:
+    gripper: HandGeometry  # the robot's open hand
+    reach_center: tuple[float, float, float]  # the robot's shoulder: hands prefer to come from the robot
     anchors: int = 16  # surface points hands are placed around, per segment
     approach_tilts_deg: tuple[float, ...] = (-45.0, -22.5, 0.0, 22.5, 45.0)  # about the part's long axis
     depth: float = 0.015  # m the fingertips go past the anchor surface
@@ -45,14 +48,12 @@ class AntipodalConfig:
     normal_radius: float = 0.012  # m radius of the neighbourhood a surface normal is fitted to
     collision_tolerance: int = 2
     min_points_between: int = 3
-    reach_center: tuple[float, float, float] = (0.0, 0.0, 0.333)  # hands prefer to come from the robot
-    gripper: GripperGeometry = field(default_factory=GripperGeometry)
 
 
 class AntipodalGraspProposer:
     """Geometric antipodal grasps, scored by contact-normal agreement and approach direction."""
 
-    def __init__(self, config: AntipodalConfig = AntipodalConfig()):
+    def __init__(self, config: AntipodalConfig):
         self.config = config
 
     def propose(self, cloud: ObjectCloud, segment: np.ndarray, segment_id: int, rng: np.random.Generator) -> list[GraspCandidate]:

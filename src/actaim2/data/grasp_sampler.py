@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from actaim2.data.actions import ActionSequence
-from actaim2.data.grasp import AntipodalGraspProposer, GraspProposer
+from actaim2.data.grasp import AntipodalConfig, AntipodalGraspProposer, GraspProposer
 from actaim2.data.object_cloud import CloudConfig, ObjectCloud, part_segments
 from actaim2.data.random_sampler import SamplingConfig, approach_is_free, complete_action
 
@@ -18,11 +18,11 @@ from actaim2.data.random_sampler import SamplingConfig, approach_is_free, comple
 class HeuristicGraspSampler:
     name = "grasp"
 
-    def __init__(self, cloud_config: CloudConfig, config: SamplingConfig = SamplingConfig(),
-                 proposer: GraspProposer | None = None, top_k: int = 5):
+    def __init__(self, cloud_config: CloudConfig, config: SamplingConfig, proposer: GraspProposer | None = None, top_k: int = 5):
+        """``proposer`` defaults to the geometric one with the robot's hand and shoulder (from ``config``)."""
         self.cloud_config = cloud_config
         self.config = config
-        self.proposer = proposer or AntipodalGraspProposer()
+        self.proposer = proposer or AntipodalGraspProposer(AntipodalConfig(gripper=config.gripper, reach_center=config.reach.center))
         self.top_k = top_k  # one of the k best grasps is drawn: the best alone would repeat itself
 
     def sample(self, cloud: ObjectCloud, rng: np.random.Generator, index: int) -> ActionSequence | None:

@@ -2,41 +2,53 @@
 
 p1 is a random point of the object cloud inside the robot's reach, R0 a uniformly random
 rotation, p2 a random manipulation position around p1 inside the valid area, and p0 the start
-pose ``start_distance`` behind p1 along the approach axis. Candidates whose open hand would
+pose ``start_distance`` behind p1 along the approach axis. Reach, hand and approach distance
+are the robot preset's (:meth:`SamplingConfig.for_robot`). Candidates whose open hand would
 intersect the object cloud at p1 or on the way from p0 are rejected and redrawn. The heuristic
 grasp sampler reuses :func:`complete_action` for p0 and p2, as the paper does.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from actaim2.data.actions import ActionSequence
-from actaim2.data.gripper import GripperGeometry, collides, points_near
+from actaim2.data.gripper import collides, points_near
 from actaim2.data.object_cloud import ObjectCloud
+from actaim2.robots import HandGeometry, Reach, RobotSpec
 
 
 @dataclass(frozen=True)
 class SamplingConfig:
-    reach_center: tuple[float, float, float] = (0.0, 0.0, 0.333)  # Panda shoulder in `world`
-    reach_min: float = 0.3  # m from the shoulder: closer poses fold the arm onto itself
-    reach_max: float = 0.82  # Panda reach is 0.855 m; keep a margin for orientation
+    reach: Reach  # the robot's (RobotSpec.reach)
+    gripper: HandGeometry  # the robot's open hand (RobotSpec.hand)
     min_height: float = 0.02  # tcp positions stay this far above the floor (z = 0)
-    start_distance: float = 0.12  # |p0 - p1| (m)
     manipulation_min: float = 0.1  # |p2 - p1| range (m)
     manipulation_max: float = 0.3
     approach_checks: int = 4  # hand poses checked along p0 -> p1 besides p1
     collision_tolerance: int = 3
     max_tries: int = 200
-    gripper: GripperGeometry = field(default_factory=GripperGeometry)
+
+    @classmethod
+    def for_robot(cls, spec: RobotSpec, **overrides) -> "SamplingConfig":
+        """The sampling settings of one robot preset (its reach, hand and approach distance)."""
+        if spec.reach is None or spec.hand is None:
+            raise ValueError(f"robot {spec.name!r} has no {'reach' if spec.reach is None else 'hand'} geometry to sample "
+                             f"actions with: add `reach` and `hand` to its YAML (see actaim2.robots.load_robot_spec)")
+        return cls(reach=spec.reach, gripper=spec.hand, **overrides)
+
+    @property
+    def start_distance(self) -> float:
+        """|p0 - p1| (m): the straight approach along the hand's z axis."""
+        return self.gripper.approach_distance
 
     def reachable(self, p: np.ndarray) -> np.ndarray | bool:
         """Inside the reach shell and above the floor; ``p`` is one point or an (N, 3) array."""
         p = np.asarray(p, dtype=float)
-        d = np.linalg.norm(p - np.asarray(self.reach_center), axis=-1)
-        return (self.reach_min <= d) & (d <= self.reach_max) & (p[..., 2] >= self.min_height)
+        d = np.linalg.norm(p - np.asarray(self.reach.center), axis=-1)
+        return (self.reach.min <= d) & (d <= self.reach.max) & (p[..., 2] >= self.min_height)
 
 
 def approach_is_free(p1: np.ndarray, R0: np.ndarray, points: np.ndarray, config: SamplingConfig) -> bool:
@@ -69,7 +81,7 @@ def complete_action(p1: np.ndarray, R0: np.ndarray, rng: np.random.Generator, co
 class RandomSampler:
     name = "random"
 
-    def __init__(self, config: SamplingConfig = SamplingConfig()):
+    def __init__(self, config: SamplingConfig):
         self.config = config
 
     def sample(self, cloud: ObjectCloud, rng: np.random.Generator, index: int) -> ActionSequence | None:
