@@ -19,6 +19,7 @@ COMMANDS: dict[tuple[str, ...], tuple[str, str]] = {
     ("render",): ("actaim2.perception.render_cli", "render a bag or saved cloud into orthographic PNG views"),
     ("collect",): ("actaim2.data.collect_cli", "self-supervised data collection in simulation"),
     ("stats",): ("actaim2.data.stats_cli", "statistics of a collected dataset"),
+    ("launch",): ("actaim2.launch.cli", "start a node graph (sim_panda_ring5, sim_kinova_azure, real_kinova_azure) as processes"),
 }
 
 

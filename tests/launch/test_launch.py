@@ -1,0 +1,131 @@
+"""One node list, two launchers: the committed ROS XML launch files say exactly what
+`actaim2 launch` starts, and `actaim2 launch` starts, reports and stops real node processes."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import rclpy
+from rclpy.node import Node
+from tf2_msgs.msg import TFMessage
+
+from actaim2.launch.cli import command_lines, default_graphs_file, share_dir
+from actaim2.launch.graph import GraphError, NodeSpec, expand_share, load_graphs, parse_launch_xml, to_launch_xml
+from actaim2_perception.transforms import TF_STATIC_LISTENER_QOS
+from harness import REPO, wait_for
+
+GRAPHS = load_graphs(REPO / "actaim2_policy" / "launch" / "graphs.yaml")
+
+
+def test_the_three_graphs_of_design_exist_and_the_installed_list_is_the_source_one():
+    assert {"sim_panda_ring5", "sim_kinova_azure", "real_kinova_azure"} <= set(GRAPHS)
+    assert "sim_node" not in {n.executable for n in GRAPHS["real_kinova_azure"].nodes}
+    assert default_graphs_file().read_text() == (REPO / "actaim2_policy" / "launch" / "graphs.yaml").read_text()
+
+
+@pytest.mark.parametrize("name", sorted(GRAPHS))
+def test_committed_launch_xml_is_generated_from_the_node_list(name):
+    committed = (REPO / "actaim2_policy" / "launch" / f"{name}.launch.xml").read_text()
+    assert committed == to_launch_xml(GRAPHS[name]), "regenerate: actaim2 launch --write-xml actaim2_policy/launch"
+
+
+def parse_ros2_run(cmd: list[str]) -> NodeSpec:
+    """A `ros2 run` command line back into what it starts (the inverse of NodeSpec.ros_args)."""
+    assert cmd[:2] == ["ros2", "run"] and cmd[4] == "--ros-args", cmd
+    name, files, parameters, remaps = None, [], {}, {}
+    args = iter(cmd[5:])
+    for flag in args:
+        value = next(args)
+        if flag == "--params-file":
+            files.append(value)
+        elif flag == "-p":
+            key, _, v = value.partition(":=")
+            parameters[key] = v
+        elif flag == "-r" and value.startswith("__node:="):
+            name = value.removeprefix("__node:=")
+        elif flag == "-r":
+            source, _, target = value.partition(":=")
+            remaps[source] = target
+        else:
+            raise AssertionError(f"unexpected argument {flag} in {cmd}")
+    return NodeSpec(cmd[2], cmd[3], name, tuple(files), parameters, remaps)
+
+
+@pytest.mark.parametrize("name", sorted(GRAPHS))
+def test_launch_xml_nodes_parameters_and_remappings_equal_what_actaim2_launch_starts(name):
+    from_xml = parse_launch_xml((REPO / "actaim2_policy" / "launch" / f"{name}.launch.xml").read_text())
+    started = [parse_ros2_run(cmd) for cmd in command_lines(GRAPHS[name])]
+    assert len(from_xml) == len(started) > 0
+    for xml_node, run_node in zip(from_xml, started):
+        assert (xml_node.package, xml_node.executable, xml_node.name) == (run_node.package, run_node.executable, run_node.name)
+        resolved = tuple(str(Path(share_dir(f.split("/")[0])) / f.split("/", 1)[1]) for f in xml_node.params_files)
+        assert resolved == run_node.params_files
+        assert all(Path(f).is_file() or "policy_node" in f for f in resolved), resolved
+        assert {k: expand_share(v, share_dir) for k, v in xml_node.parameters.items()} == run_node.parameters
+        assert xml_node.remappings == run_node.remappings
+
+
+def test_bad_graph_files_are_refused_with_the_reason(tmp_path):
+    bad = tmp_path / "graphs.yaml"
+    bad.write_text("g:\n  nodes:\n    - {package: a}\n")
+    with pytest.raises(GraphError, match="needs package and executable"):
+        load_graphs(bad)
+    bad.write_text("g:\n  nodes:\n    - {package: a, executable: b}\n    - {package: c, executable: b}\n")
+    with pytest.raises(GraphError, match="duplicate node names"):
+        load_graphs(bad)
+    with pytest.raises(GraphError, match="cannot read"):
+        load_graphs(tmp_path / "missing.yaml")
+
+
+def launch(graphs: Path, graph: str, logs: Path) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "actaim2.cli", "launch", graph, "--graphs", str(graphs), "--logs", str(logs)],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+
+
+def test_actaim2_launch_starts_every_node_and_ctrl_c_stops_them_all(tmp_path):
+    graphs = tmp_path / "graphs.yaml"
+    calibration = "$(find-pkg-share actaim2_perception)/config/azure_kinect_calibration.yaml"
+    graphs.write_text(
+        "pair:\n  nodes:\n"
+        f"    - {{package: actaim2_perception, executable: calibration_publisher, name: calib_a, parameters: {{calibration_file: '{calibration}'}}}}\n"
+        f"    - {{package: actaim2_perception, executable: calibration_publisher, name: calib_b, parameters: {{calibration_file: '{calibration}'}},"
+        " remappings: {/tf_static: /tf_static_b}}\n")
+    proc = launch(graphs, "pair", tmp_path / "logs")
+    rclpy.init()
+    node = Node("launch_probe")
+    try:
+        got = {"/tf_static": [], "/tf_static_b": []}
+        for topic, inbox in got.items():
+            node.create_subscription(TFMessage, topic, inbox.append, TF_STATIC_LISTENER_QOS)
+        assert wait_for(lambda: (rclpy.spin_once(node, timeout_sec=0.1), all(got.values()))[1], 60.0), \
+            (proc.poll(), {k: len(v) for k, v in got.items()})
+        names = set(node.get_node_names())
+        assert {"calib_a", "calib_b"} <= names, names
+    finally:
+        node.destroy_node()
+        rclpy.shutdown()
+    os.killpg(proc.pid, signal.SIGINT)
+    out, _ = proc.communicate(timeout=30)
+    assert proc.returncode == 0, out
+    assert "calib_a stopped" in out and "calib_b stopped" in out
+    assert (tmp_path / "logs" / "pair" / "calib_a.log").read_text()
+
+
+def test_a_node_that_dies_is_reported_with_its_log_and_the_graph_stops(tmp_path):
+    graphs = tmp_path / "graphs.yaml"
+    graphs.write_text(
+        "g:\n  nodes:\n"
+        "    - {package: actaim2_perception, executable: calibration_publisher, name: ok, parameters: "
+        "{calibration_file: '$(find-pkg-share actaim2_perception)/config/azure_kinect_calibration.yaml'}}\n"
+        "    - {package: actaim2_perception, executable: calibration_publisher, name: broken, parameters: {calibration_file: /no/such.yaml}}\n")
+    proc = launch(graphs, "g", tmp_path / "logs")
+    out, _ = proc.communicate(timeout=60)
+    assert proc.returncode == 1, out
+    log = tmp_path / "logs" / "g" / "broken.log"
+    assert f"broken exited with code" in out and str(log) in out, out
+    assert "/no/such.yaml" in log.read_text()
+    assert "ok stopped" in out
