@@ -41,6 +41,11 @@ PLACEMENT_JITTER = (0.03, 0.05, np.deg2rad(5.0))
 GRIP_REACHED = 1e-4
 GRIP_STALL_SPEED = 2e-3
 GRIP_STALL_WINDOW = 0.05
+# After a reset, physics runs until the object's DoFs move slower than SETTLE_SPEED (m/s or
+# rad/s), for SETTLE_MIN_TIME to SETTLE_MAX_TIME simulated seconds (a lid falls shut in ~0.5 s).
+SETTLE_SPEED = 2e-3
+SETTLE_MIN_TIME = 0.1
+SETTLE_MAX_TIME = 2.0
 
 
 @dataclass(frozen=True)
@@ -138,7 +143,10 @@ class SimEnv:
     ) -> ResetInfo:
         """Load an object (a catalogue ``category``/``instance``, or a PartNet-Mobility style
         ``folder``), place it before the robot, set every DoF to ``dof_fraction`` of its range
-        (0.5 = half-open), and send the robot home with the gripper open.
+        (0.5 = half-open), and send the robot home with the gripper open. Then physics runs until
+        the object stands still (:meth:`settle`): a part that cannot rest at the requested
+        fraction (a lid below its balance point, a toggle between its ends) ends at its nearest
+        stable state, and ``dof_initial`` reports where it rests, the state success is measured from.
 
         ``seed`` draws the placement jitter (and the cameras' noise); ``jitter=False`` places
         the object exactly where its recipe says.
@@ -157,6 +165,7 @@ class SimEnv:
         initial = obj.lower + fraction * (obj.upper - obj.lower)
         obj.set_qpos(initial)
         self.robot.reset(self.spec.home, self.spec.gripper_open)
+        self.settle()
         if self.rig is not None:
             self.rig.reset(seed)
         self.info = ResetInfo(obj.object_id, obj.category, int(instance), int(seed), folder, obj.dof_names,
@@ -165,6 +174,17 @@ class SimEnv:
 
     def step(self, n: int = 1) -> None:
         self.sim.step(n)
+
+    def settle(self, min_time: float = SETTLE_MIN_TIME, max_time: float = SETTLE_MAX_TIME) -> float:
+        """Step until every object DoF moves slower than ``SETTLE_SPEED`` (after at least
+        ``min_time``, at most ``max_time`` simulated seconds); returns the time it took."""
+        start = self.time
+        chunk = max(1, int(round(0.025 / self.timestep)))
+        while self.time - start < max_time - 1e-9:
+            self.step(chunk)
+            if self.time - start >= min_time - 1e-9 and np.max(np.abs(self.object.articulation.get_qvel()), initial=0.0) < SETTLE_SPEED:
+                break
+        return self.time - start
 
     # -- robot commands and state -----------------------------------------------------------
     def set_arm_targets(self, q: np.ndarray, qd: np.ndarray | None = None) -> None:

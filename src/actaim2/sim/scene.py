@@ -50,7 +50,13 @@ class SimScene:
         return self.steps * self.timestep
 
     def step(self, n: int = 1) -> None:
+        """``n`` physics steps; the object's joint dynamics (friction clamps, toggle springs) are
+        refreshed from the current state before each (a teleported toggle must not first feel
+        the spring of where it was)."""
+        dynamics = self.object.dynamics if self.object is not None else None
         for _ in range(n):
+            if dynamics is not None:
+                dynamics.step()
             self.scene.step()
         self.steps += n
 

@@ -2,10 +2,10 @@
 
 One path for every object: SAPIEN's URDF loader on ``<folder>/mobility.urdf`` (generated
 objects are written in that layout by :mod:`actaim2.sim.objects.catalog`). The object's root
-is fixed to the world; its movable joints keep the URDF damping (SAPIEN turns it into a
-zero-stiffness drive) and gain the URDF friction, and its links ignore gravity, so a part
-stays where the robot leaves it, as a real hinge or runner with some friction does (with
-gravity on, a half-open lid or sash would fall shut before the first observation).
+is fixed to the world; gravity acts on every link, and each movable joint gets the friction,
+damping and behaviour (bistable toggle, counterbalanced sash) of :mod:`.dynamics`: the
+URDF's ``<dynamics>`` where given, else the category table (:mod:`.physics_table`). A part
+stays where the robot leaves it if its joint's friction beats its weight, as real ones do.
 
 Placement: the object, at its closed configuration (lower limits), is turned by ``yaw`` and
 moved so that its bounding box's front face is ``front_distance`` in front of the robot base
@@ -20,7 +20,8 @@ import numpy as np
 import sapien
 
 from ..urdf import parse_urdf
-from .model import Handle, read_handles, read_meta
+from .dynamics import ObjectDynamics, joint_dynamics
+from .model import Handle, read_handles, read_meta, read_semantics
 
 DEFAULT_FRONT_DISTANCE = 0.55  # m, for folders whose meta.json does not recommend one
 OBJECT_DENSITY = 500.0  # kg/m^3, wood-like
@@ -40,6 +41,7 @@ class LoadedObject:
     upper: np.ndarray
     handles: list[Handle]
     scale: float = 1.0
+    dynamics: ObjectDynamics | None = None  # joint friction and springs: step() before every physics step
 
     @property
     def dof_names(self) -> list[str]:
@@ -109,9 +111,6 @@ def load_object(
         joints = articulation.get_active_joints()
         if not joints:
             raise ObjectLoadError(f"{urdf}: the object has no movable joint")
-        _apply_joint_friction(urdf, joints)
-        for link in articulation.links:
-            link.disable_gravity = True
         limits = np.asarray([j.limit[0] for j in joints], dtype=float)
         if not np.all(np.isfinite(limits)):
             raise ObjectLoadError(f"{urdf}: every movable joint needs finite limits (continuous joints are not supported)")
@@ -120,6 +119,7 @@ def load_object(
         raise
     obj = LoadedObject(folder, articulation.name, meta.get("model_cat", "unknown"), articulation, joints,
                        limits[:, 0].copy(), limits[:, 1].copy(), read_handles(folder), scale)
+    obj.dynamics = ObjectDynamics(articulation, joints, joint_dynamics(urdf, joints, obj.category, read_semantics(folder)))
     place(obj, recommended_front_distance(folder) if front_distance is None else front_distance, lateral, yaw)
     return obj
 
@@ -151,16 +151,3 @@ def aabb(articulation: sapien.physx.PhysxArticulation) -> tuple[np.ndarray, np.n
     boxes = np.asarray(boxes, dtype=float)
     return boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)
 
-
-def _apply_joint_friction(urdf: Path, joints: list) -> None:
-    """SAPIEN's loader drops ``<dynamics friction>``: set it on the joints here."""
-    import xml.etree.ElementTree as ET
-
-    friction = {}
-    for j in ET.parse(urdf).getroot().iter("joint"):
-        dyn = j.find("dynamics")
-        if dyn is not None and float(dyn.get("friction", 0.0)) > 0.0:
-            friction[j.get("name")] = float(dyn.get("friction"))
-    for joint in joints:
-        if joint.name in friction:
-            joint.friction = friction[joint.name]

@@ -1,9 +1,13 @@
 """An articulated object as plain data, written out in PartNet-Mobility layout.
 
-Generated objects are described by :class:`ObjectModel` (links made of boxes and cylinders,
-joints with limits and damping, handle annotations) and written to a folder with the same
-layout as a PartNet-Mobility object (``mobility.urdf``, ``semantics.txt``, ``meta.json``, and
-optionally ``textured_objs/*.obj`` meshes). The simulator then loads every object, generated
+Generated objects are described by :class:`ObjectModel` (links made of boxes, cylinders and
+convex mesh pieces, each of a material; joints with limits, friction and damping; handle
+annotations) and written to a folder with the same layout as a PartNet-Mobility object
+(``mobility.urdf``, ``semantics.txt``, ``meta.json``, ``textured_objs/*.obj`` meshes). Every
+movable link gets an ``<inertial>`` from its shapes' volumes and materials' densities
+(:mod:`.mass`, :mod:`.physics_table`). Mesh pieces (handle bends, knob caps) are convex, one
+OBJ each, so a collision hull per file is exact: a bar on standoffs stays a bar with an
+empty gap behind it, never a filled block. The simulator then loads every object, generated
 or user-supplied, through one path: SAPIEN's URDF loader on that folder.
 
 ``handles.json`` is this project's addition to the layout: where each movable part can be
@@ -28,24 +32,34 @@ Vec3 = tuple[float, float, float]
 RGBA = tuple[float, float, float, float]
 
 # Version of the generator's output: bump it to invalidate cached object folders.
-FORMAT_VERSION = 6
+FORMAT_VERSION = 7
 
 
 @dataclass(frozen=True)
 class Shape:
-    """A box (``size`` = full extents) or a cylinder (``size`` = (radius, length, 0), axis z)."""
+    """A box (``size`` = full extents), a cylinder (``size`` = (radius, length, 0), axis z) or a
+    convex ``mesh`` (the hull of ``points``, in the shape frame; ``size`` unused).
+
+    ``material`` names a :data:`.physics_table.MATERIALS` entry ("" = the link's material).
+    """
 
     kind: str
     size: Vec3
     xyz: Vec3 = (0.0, 0.0, 0.0)
     rpy: Vec3 = (0.0, 0.0, 0.0)
     rgba: RGBA = (0.7, 0.7, 0.7, 1.0)
+    material: str = ""
+    points: tuple = ()
 
 
 @dataclass
 class Link:
+    """A rigid part; ``material`` is its shapes' default material ("" = no inertial written:
+    the fixed base, whose mass never moves)."""
+
     name: str
     shapes: list[Shape] = field(default_factory=list)
+    material: str = ""
 
 
 @dataclass(frozen=True)
@@ -115,10 +129,13 @@ class ObjectModel:
         return [j for j in self.joints if j.type != "fixed"]
 
     def to_urdf(self, mesh_files: dict[tuple[str, int], str] | None = None) -> str:
-        """URDF text; shapes listed in ``mesh_files`` reference that OBJ file instead of a primitive."""
+        """URDF text; shapes listed in ``mesh_files`` reference that OBJ file instead of a primitive
+        (``mesh`` shapes must be listed: they have no primitive)."""
         lines = ['<?xml version="1.0"?>', f"<robot name={quoteattr(self.object_id)}>"]
         for link in self.links:
             lines.append(f'  <link name="{link.name}">')
+            if link.material:
+                lines.append(_inertial_xml(link))
             for i, s in enumerate(link.shapes):
                 mesh = mesh_files.get((link.name, i)) if mesh_files else None
                 geometry = _geometry_xml(s, mesh)
@@ -142,16 +159,16 @@ class ObjectModel:
         return "\n".join(lines) + "\n"
 
     def write_folder(self, folder: Path, meshes: bool = False) -> Path:
-        """Write the PartNet-Mobility layout into ``folder``; ``meshes`` writes every shape as an OBJ."""
+        """Write the PartNet-Mobility layout into ``folder``; ``meshes`` writes every shape as an
+        OBJ (mesh pieces always are)."""
         folder = Path(folder)
         folder.mkdir(parents=True, exist_ok=True)
-        mesh_files = None
-        if meshes:
-            (folder / "textured_objs").mkdir(exist_ok=True)
-            mesh_files = {}
-            for link in self.links:
-                for i, s in enumerate(link.shapes):
+        mesh_files = {}
+        for link in self.links:
+            for i, s in enumerate(link.shapes):
+                if meshes or s.kind == "mesh":
                     rel = f"textured_objs/{link.name}-{i}.obj"
+                    (folder / "textured_objs").mkdir(exist_ok=True)
                     _write_obj(folder / rel, *_shape_mesh(s))
                     mesh_files[(link.name, i)] = rel
         (folder / "mobility.urdf").write_text(self.to_urdf(mesh_files))
@@ -174,6 +191,19 @@ def read_handles(folder: Path) -> list[Handle]:
     return [Handle(**{k: tuple(v) if isinstance(v, list) else v for k, v in h.items()}) for h in json.loads(path.read_text())["handles"]]
 
 
+def read_semantics(folder: Path) -> dict[str, str]:
+    """Part label of each link from ``semantics.txt`` (``link joint_kind label`` per line); {} without one."""
+    path = Path(folder) / "semantics.txt"
+    if not path.is_file():
+        return {}
+    out = {}
+    for line in path.read_text().splitlines():
+        words = line.split()
+        if len(words) >= 3:
+            out[words[0]] = words[2]
+    return out
+
+
 def read_meta(folder: Path) -> dict:
     path = Path(folder) / "meta.json"
     return json.loads(path.read_text()) if path.is_file() else {}
@@ -181,6 +211,18 @@ def read_meta(folder: Path) -> dict:
 
 def _fmt(values) -> str:
     return " ".join(f"{float(v):.6g}" for v in values)
+
+
+def _inertial_xml(link: Link) -> str:
+    """``<inertial>`` of a link from its shapes' volumes and materials."""
+    from .mass import link_mass_properties
+    from .physics_table import MATERIALS
+
+    densities = [MATERIALS[s.material or link.material].density for s in link.shapes]
+    mass, com, I = link_mass_properties(link.shapes, densities)
+    return (f'    <inertial><origin xyz="{_fmt(com)}" rpy="0 0 0"/><mass value="{mass:.6g}"/>'
+            f'<inertia ixx="{I[0, 0]:.6g}" ixy="{I[0, 1]:.6g}" ixz="{I[0, 2]:.6g}" iyy="{I[1, 1]:.6g}" '
+            f'iyz="{I[1, 2]:.6g}" izz="{I[2, 2]:.6g}"/></inertial>')
 
 
 def _geometry_xml(s: Shape, mesh: str | None) -> str:
@@ -206,6 +248,9 @@ def _shape_mesh(s: Shape, segments: int = 24) -> tuple[np.ndarray, np.ndarray]:
         v = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float) * h
         f = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
                       [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+    elif s.kind == "mesh":
+        v = np.asarray(s.points, dtype=float)
+        f = convex_faces(v)
     elif s.kind == "cylinder":
         r, length = s.size[0], s.size[1]
         a = np.linspace(0, 2 * np.pi, segments, endpoint=False)
@@ -221,6 +266,20 @@ def _shape_mesh(s: Shape, segments: int = 24) -> tuple[np.ndarray, np.ndarray]:
     else:
         raise ValueError(f"unknown shape kind {s.kind!r}")
     return v @ _rpy_matrix(s.rpy).T + np.asarray(s.xyz), f
+
+
+def convex_faces(points: np.ndarray) -> np.ndarray:
+    """Outward-facing triangles of the convex hull of ``points`` (indices into ``points``)."""
+    from scipy.spatial import ConvexHull
+
+    hull = ConvexHull(points)
+    faces = hull.simplices.copy()
+    centre = points[hull.vertices].mean(axis=0)
+    for k, f in enumerate(faces):
+        normal = np.cross(points[f[1]] - points[f[0]], points[f[2]] - points[f[0]])
+        if normal @ (points[f[0]] - centre) < 0:
+            faces[k] = f[[0, 2, 1]]
+    return faces
 
 
 def _write_obj(path: Path, vertices: np.ndarray, faces: np.ndarray) -> None:
