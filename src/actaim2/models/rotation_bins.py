@@ -7,7 +7,8 @@ as (x, y, z, w)):
   q and -q are the same rotation and give the same bins: encoding goes through the rotation.
 * Euler angles are SciPy's extrinsic ``"xyz"`` (as RVT): R = Rz(gamma) @ Ry(beta) @ Rx(alpha),
   each angle in [-180, 180) degrees, bin k covering [-180 + 5k, -180 + 5(k+1)) and decoding
-  to its centre. Decoded quaternions have w >= 0.
+  to its centre. Encoded bins have beta in [-90, 90] (the other Euler solution is mirrored
+  onto it), so each rotation has one bin triple. Decoded quaternions have w >= 0.
 
 Error bound. Rounding each angle to its bin centre errs by <= 2.5 deg per angle, which bounds the
 geodesic error by sqrt(3) * 2.5 = 4.33 deg only where the three rotation axes are orthogonal
@@ -59,15 +60,37 @@ def _euler_solutions(rotations: Rotation) -> np.ndarray:
     return np.stack([first, second], axis=1)
 
 
+def _angle_bins(angles: np.ndarray, n_bins: int) -> np.ndarray:
+    """Bin of each angle in degrees (any value: wrapped into [-180, 180))."""
+    return np.floor((np.asarray(angles) + 180.0) / bin_width(n_bins)).astype(np.int64) % n_bins
+
+
+def _canonical(bins: np.ndarray, n_bins: int) -> np.ndarray:
+    """The same rotations with |beta| < 90 deg: (alpha + 180, 180 - beta, gamma + 180) where beta's centre is beyond.
+
+    Bin centres of beta beyond +-90 mirror onto centres inside (90 is a bin edge), so every bin
+    triple has an equivalent with |beta| < 90: one rotation, one triple, and q and -q cannot
+    pick different triples of the same rotation by rounding.
+    """
+    angles = bins_to_euler(bins, n_bins)
+    flip = np.abs(angles[..., 1]) > 90.0
+    mirrored = np.stack([angles[..., 0] + 180.0, 180.0 - angles[..., 1], angles[..., 2] + 180.0], axis=-1)
+    return np.where(flip[..., None], _angle_bins(mirrored, n_bins), bins)
+
+
 def quat_to_bins(quat_xyzw: np.ndarray, n_bins: int = ROTATION_BINS) -> np.ndarray:
     """(N, 4) quaternions (x, y, z, w), any sign and norm -> (N, 3) int64 bins, nearest in angle.
 
     See the module docstring for why the search (54 candidates per rotation) is needed.
     """
-    rotations = Rotation.from_quat(np.asarray(quat_xyzw, dtype=np.float64).reshape(-1, 4))
+    if n_bins % 4:
+        raise ValueError(f"n_bins must be a multiple of 4 (so that +-90 deg is a bin edge), got {n_bins}")
+    q = np.asarray(quat_xyzw, dtype=np.float64).reshape(-1, 4)
+    q = np.where(q[:, 3:] < 0, -q, q)  # one sign: q and -q then take bit-identical paths
+    rotations = Rotation.from_quat(q)
     n = len(rotations)
-    rounded = np.floor((_euler_solutions(rotations) + 180.0) / bin_width(n_bins)).astype(np.int64)  # (N, 2, 3)
-    candidates = ((rounded[:, :, None, :] + _NEIGHBOURS[None, None]) % n_bins).reshape(n, -1, 3)  # (N, 54, 3)
+    rounded = _angle_bins(_euler_solutions(rotations), n_bins)  # (N, 2, 3)
+    candidates = _canonical((rounded[:, :, None, :] + _NEIGHBOURS[None, None]) % n_bins, n_bins).reshape(n, -1, 3)
     decoded = Rotation.from_euler(EULER_SEQUENCE, bins_to_euler(candidates.reshape(-1, 3), n_bins), degrees=True)
     repeated = Rotation.from_quat(np.repeat(rotations.as_quat(), candidates.shape[1], axis=0))
     error = (decoded.inv() * repeated).magnitude().reshape(n, -1)

@@ -6,10 +6,10 @@ definition used here (:func:`~actaim2.perception.ortho_views.project`, called on
 points with centre 0 and half extent 1). This module adds what learning needs on top:
 
 * :class:`CubePlacement` - where the cube sits in the world. Every learned quantity lives in the
-  *cube frame* ``(world - center) / half_extent`` in [-1, 1]^3: ground-truth positions are moved
-  into it before they become heatmap targets (the authors' code skipped this step and trained on
-  world positions against cube-frame views), and the views' xyz/depth channels are expressed in
-  it (:func:`normalize_views`), as RVT renders its normalised cloud.
+  *cube frame* ``(world - center) / half_extent`` in [-1, 1]^3, the frame the renderer writes
+  the views' xyz channels in (as RVT renders its normalised cloud): ground-truth positions are
+  moved into it before they become heatmap targets (the authors' code skipped this step and
+  trained on world positions against cube-frame views).
 * :func:`heatmap_targets` - Gaussian (sigma 1.5 px) soft targets around a point's projections.
 * :func:`decode_points` - RVT's cube-grid re-projection: the 3-D point whose five projections
   carry the largest summed log-probability, searched coarse-to-fine (a 32^3 grid, then the 9^3
@@ -29,15 +29,12 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from actaim2.perception.ortho_views import CHANNELS, VIEWS, project
+from actaim2.perception.ortho_views import VIEWS, project
 
 HEATMAP_SIGMA = 1.5  # px, RVT's Gaussian target width
 COARSE_CELLS = 32  # cells per axis of the coarse decode grid
-FINE_RADIUS = 4  # fine cells searched on each side of the best coarse cell: a 9^3 neighbourhood
-
-_XYZ = [CHANNELS.index(c) for c in "xyz"]
-_DEPTH = CHANNELS.index("depth")
-_OCCUPANCY = CHANNELS.index("occupancy")
+FINE_RADIUS = 4  # fine cells searched on each side of a coarse cell's middle: a 9^3 neighbourhood
+REFINED_CELLS = 2  # coarse cells whose neighbourhoods are searched (2: an almost-tied second mode is not lost)
 
 
 @dataclass(frozen=True)
@@ -57,27 +54,14 @@ class CubePlacement:
         center = torch.as_tensor(self.center, dtype=world.dtype, device=world.device)
         return (world - center) / self.half_extent
 
+    def contains(self, world: torch.Tensor) -> torch.Tensor:
+        """(...,) whether world points (..., 3) lie inside the cube, where they can be targets."""
+        return self.to_cube(world).abs().amax(dim=-1) <= 1.0
+
     def to_world(self, cube: torch.Tensor) -> torch.Tensor:
         """(..., 3) cube frame -> world metres (the inverse of :meth:`to_cube`)."""
         center = torch.as_tensor(self.center, dtype=cube.dtype, device=cube.device)
         return cube * self.half_extent + center
-
-
-def normalize_views(views: torch.Tensor, placement: CubePlacement) -> torch.Tensor:
-    """Rendered views (..., len(CHANNELS), R, R) in world units -> the predictor's input units.
-
-    xyz become cube-frame coordinates and depth a fraction of the cube side (0..1); colour and
-    occupancy are unchanged. Empty pixels stay 0 in every channel, so occupancy still tells them
-    apart. Without this, xyz would carry the rig's placement and the same scene in another cube
-    would look different to the network.
-    """
-    out = views.clone()
-    occupied = views[..., _OCCUPANCY : _OCCUPANCY + 1, :, :] > 0
-    center = torch.as_tensor(placement.center, dtype=views.dtype, device=views.device).view(3, 1, 1)
-    xyz = (views[..., _XYZ, :, :] - center) / placement.half_extent
-    out[..., _XYZ, :, :] = torch.where(occupied, xyz, torch.zeros_like(xyz))
-    out[..., _DEPTH, :, :] = views[..., _DEPTH, :, :] / (2.0 * placement.half_extent)
-    return out
 
 
 def project_cube(points: torch.Tensor, resolution: int) -> torch.Tensor:
@@ -115,18 +99,15 @@ def _pixel_index(cells: torch.Tensor, resolution: int) -> torch.Tensor:
 
 
 @lru_cache(maxsize=4)
-def _coarse_grid(resolution: int, coarse: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """Coarse candidates as fine cells (C^3, 3) and their pixel indices (C^3, V), cached per size.
+def _coarse_grid(coarse: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """Coarse cells (C^3, 3) and the flat index of their block in each view's C x C pooled map.
 
-    Coarse cell I spans fine cells [I*s, (I+1)*s) with s = R / C; its candidate is the fine cell
-    I*s + s // 2 at its middle, so every coarse score is also an exact fine-lattice score.
+    Views are axis-aligned, so the fine cells of one coarse cell project onto one aligned block
+    of (R / C)^2 pixels in every view: the block of the coarse lattice's own projection.
     """
-    if resolution % coarse:
-        raise ValueError(f"the coarse grid ({coarse}) must divide the view resolution ({resolution})")
-    step = resolution // coarse
-    axis = torch.arange(coarse) * step + step // 2
+    axis = torch.arange(coarse)
     cells = torch.cartesian_prod(axis, axis, axis)
-    return cells, _pixel_index(cells, resolution)
+    return cells, _pixel_index(cells, coarse)
 
 
 def _log_probs(heatmaps: torch.Tensor) -> torch.Tensor:
@@ -151,15 +132,28 @@ def score_cells(heatmaps: torch.Tensor, cells: torch.Tensor) -> torch.Tensor:
 
 
 @torch.no_grad()
-def decode_cells(heatmaps: torch.Tensor, coarse: int = COARSE_CELLS, radius: int = FINE_RADIUS) -> torch.Tensor:
-    """(B, V, R, R) heatmap logits -> (B, 3) fine-lattice cell of the best point, coarse-to-fine."""
-    b, _, resolution, _ = heatmaps.shape
+def decode_cells(
+    heatmaps: torch.Tensor, coarse: int = COARSE_CELLS, radius: int = FINE_RADIUS, refine: int = REFINED_CELLS
+) -> torch.Tensor:
+    """(B, V, R, R) heatmap logits -> (B, 3) fine-lattice cell of the best point, coarse-to-fine.
+
+    A coarse cell is scored by the sum over views of the *largest* log-probability in its block
+    (max pooling): an upper bound of every fine score inside it, so a sharp peak that falls
+    between coarse sample points is not missed. The ``refine`` best coarse cells then have their
+    (2 radius + 1)^3 fine neighbourhoods scored exactly; the best fine cell wins.
+    """
+    b, v, resolution, _ = heatmaps.shape
+    if resolution % coarse:
+        raise ValueError(f"the coarse grid ({coarse}) must divide the view resolution ({resolution})")
+    step = resolution // coarse
     log_probs = _log_probs(heatmaps)
-    cells, pixels = _coarse_grid(resolution, coarse)
-    best = cells.to(heatmaps.device)[_scores(log_probs, pixels.to(heatmaps.device)).argmax(dim=1)]  # (B, 3)
+    pooled = F.max_pool2d(log_probs.view(b * v, 1, resolution, resolution), step).view(b, -1)
+    cells, pixels = _coarse_grid(coarse)
+    top = _scores(pooled, pixels.to(heatmaps.device)).topk(refine, dim=1).indices  # (B, refine)
+    middle = cells.to(heatmaps.device)[top] * step + step // 2  # (B, refine, 3) fine cells
     offsets = torch.arange(-radius, radius + 1, device=heatmaps.device)
-    fine = (best[:, None, :] + torch.cartesian_prod(offsets, offsets, offsets)[None]).clamp_(0, resolution - 1)
-    fine_pixels = _pixel_index(fine.reshape(-1, 3), resolution).view(b, -1, len(VIEWS))
+    fine = (middle[:, :, None, :] + torch.cartesian_prod(offsets, offsets, offsets)).reshape(b, -1, 3).clamp_(0, resolution - 1)
+    fine_pixels = _pixel_index(fine.reshape(-1, 3), resolution).view(b, -1, v)
     k = _scores(log_probs, fine_pixels).argmax(dim=1)
     return fine[torch.arange(b, device=heatmaps.device), k]
 
@@ -183,9 +177,9 @@ def decode_cells_dense(heatmaps: torch.Tensor) -> torch.Tensor:
     return best_cell
 
 
-def decode_points(heatmaps: torch.Tensor, coarse: int = COARSE_CELLS, radius: int = FINE_RADIUS) -> torch.Tensor:
+def decode_points(heatmaps: torch.Tensor) -> torch.Tensor:
     """(B, V, R, R) heatmap logits -> (B, 3) cube-frame point (the best fine cell's centre)."""
-    return cell_centres(decode_cells(heatmaps, coarse, radius), heatmaps.shape[-1])
+    return cell_centres(decode_cells(heatmaps), heatmaps.shape[-1])
 
 
 def decode_points_dense(heatmaps: torch.Tensor) -> torch.Tensor:
