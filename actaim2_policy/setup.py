@@ -22,7 +22,8 @@ setup(
     license="MIT",
     entry_points={
         "console_scripts": [
-
+            "bag_player = actaim2_policy.bag_player:main",
+            "bag_recorder = actaim2_policy.bag_recorder:main",
         ],
     },
 )

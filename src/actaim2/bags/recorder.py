@@ -154,11 +154,15 @@ class Recorder:
         with self._cond:
             self._push(("stop",))
         self._thread.join()
-        with self._cond:
-            counts = {name: TopicCounts(**asdict(c)) for name, c in self._counts.items()}
+        counts = self.counts()
         for name, c in counts.items():
             c.recorded = self._recorded.get(name, 0)
         return RecordSummary([str(b.path) for b in self._bags], counts, time.monotonic() - self._started, self.error)
+
+    def counts(self) -> dict[str, TopicCounts]:
+        """A copy of the per-topic counters so far (``recorded`` is filled in by :meth:`stop`)."""
+        with self._cond:
+            return {name: TopicCounts(**asdict(c)) for name, c in self._counts.items()}
 
     @property
     def queued_bytes(self) -> int:

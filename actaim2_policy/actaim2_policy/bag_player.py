@@ -1,0 +1,120 @@
+"""bag_player: publishes a rosbag2 bag's messages with their original timing, like ``ros2 bag play``.
+
+A thin adapter over ``actaim2.bags``: :class:`~actaim2.bags.source.BagSource` opens the bag (MCAP
+or sqlite3, split or not) and checks every message, :class:`~actaim2.bags.playback.Player` times
+them (rate factor, start offset, loop, optional /clock); this node creates one publisher per
+played topic with the QoS the topic was recorded with (a transient-local /tf_static is latched
+again, holding all its recorded messages) and publishes the CDR bytes as they are.
+
+Never fatal: a topic whose type has no Python class here or whose definition rosbags cannot
+parse, a message that does not deserialize, a truncated or unreadable file are each reported
+(with topic and message index) and skipped while the rest plays. The node ends by itself when
+the bag is played (unless ``loop``), logging what it published and its timing error.
+"""
+from __future__ import annotations
+
+import json
+import threading
+from pathlib import Path
+
+from builtin_interfaces.msg import Time
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+
+from actaim2.bags.playback import PlayOptions, Player, parse_remaps
+from actaim2.bags.qos import replay_choice
+from actaim2.bags.source import BagSource
+from actaim2_policy.node_main import run
+from actaim2_policy.ros_bags import message_class, rclpy_qos
+
+PARAMETERS = {
+    # name: (default, description)
+    "bag": ("", "bag directory (with metadata.yaml) or a single .mcap / .db3 file"),
+    # rclpy cannot declare an empty string list: [""] stands for "none given".
+    "topics": ([""], "topics to play; [\"\"] = every topic of the bag"),
+    "remap": ([""], "topic remappings applied when publishing, each '/recorded:=/published'; [\"\"] = none"),
+    "rate": (1.0, "playback speed factor (2.0 = twice as fast)"),
+    "start_offset": (0.0, "s into the bag where playback starts"),
+    "loop": (False, "play again from the start offset when the bag ends, until stopped"),
+    "clock_rate": (0.0, "Hz: publish the bag time on /clock at this rate (for use_sim_time nodes); 0 = no /clock"),
+    "start_delay": (0.5, "s between creating the publishers and the first message (lets subscribers match)"),
+    "summary_file": ("", "write the final summary as JSON to this file (scripts, benchmarks); empty = none"),
+}
+
+
+class BagPlayer(Node):
+    def __init__(self, stop: threading.Event) -> None:
+        super().__init__("bag_player")
+        for name, (default, description) in PARAMETERS.items():
+            self.declare_parameter(name, default, ParameterDescriptor(description=description))
+        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        if not p["bag"]:
+            raise ValueError("parameter 'bag' is empty: give a bag directory or an .mcap/.db3 file")
+        self.done = threading.Event()
+        self._stop = stop
+        self._summary_file = str(p["summary_file"])
+        remap = parse_remaps([r for r in p["remap"] if r])
+        options = PlayOptions(
+            rate=float(p["rate"]),
+            start_offset_ns=int(float(p["start_offset"]) * 1e9),
+            loop=bool(p["loop"]),
+            clock_period_ns=int(1e9 / float(p["clock_rate"])) if float(p["clock_rate"]) > 0 else 0,
+        )
+        source = BagSource(p["bag"], self._report)
+        selected = {t for t in p["topics"] if t}
+        for topic in sorted(selected - set(source.topics)):
+            self._report(f"topic {topic}: not in the bag")
+        publishers = {}
+        for topic in source.playable():
+            if selected and topic.name not in selected:
+                continue
+            try:
+                msg_class = message_class(topic.msgtype)
+            except ImportError as exc:
+                self._report(f"topic {topic.name}: unknown message type {topic.msgtype} ({exc}); its {topic.count} message(s) are skipped")
+                continue
+            choice = replay_choice(topic.offered_qos, topic.count)
+            publisher = self.create_publisher(msg_class, remap.get(topic.name, topic.name), rclpy_qos(choice))
+            publishers[topic.name] = publisher.publish
+        clock = None
+        if options.clock_period_ns:
+            clock_pub = self.create_publisher(Clock, "/clock", 10)
+            clock = lambda ns: clock_pub.publish(Clock(clock=Time(sec=ns // 10**9, nanosec=ns % 10**9)))  # noqa: E731
+        self._player = Player(source, options, publishers, clock, stop)
+        self._thread = threading.Thread(target=self._play, args=(float(p["start_delay"]),), name="bag_player", daemon=True)
+        self._thread.start()
+        self.get_logger().info(
+            f"playing {p['bag']}: {sorted(remap.get(t, t) for t in publishers)} at rate {options.rate:g}"
+            f"{', looping' if options.loop else ''}{', /clock' if clock else ''}"
+        )
+
+    def _report(self, text: str) -> None:
+        self.get_logger().warning(text)
+
+    def _play(self, delay: float) -> None:
+        if not self._stop.wait(delay):
+            self._player.run()
+        self.done.set()
+
+    def finish(self) -> int:
+        self._thread.join()
+        stats = self._player.stats
+        timing = stats.timing_ms()
+        self.get_logger().info(
+            f"published {sum(stats.published.values())} message(s) in {stats.seconds:.2f} s ({stats.passes} pass(es))"
+            + (f"; timing error p50 {timing['p50']:.2f} ms, p99 {timing['p99']:.2f} ms, max {timing['max']:.2f} ms" if timing else "")
+        )
+        for topic, count in sorted(stats.published.items()):
+            self.get_logger().info(f"  {topic}: {count}")
+        if self._summary_file:
+            Path(self._summary_file).write_text(json.dumps(stats.as_dict(), indent=1))
+        return 0
+
+
+def main(args: list[str] | None = None) -> int:
+    return run(BagPlayer, "bag_player", args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
