@@ -55,7 +55,13 @@ PARAMETERS = {
     "arm_action": ("/joint_trajectory_controller/follow_joint_trajectory", "FollowJointTrajectory action of the arm controller"),
     "jtc_topic": ("/joint_trajectory_controller/joint_trajectory", "JTC topic used when the arm action server is absent"),
     "gripper_action": ("/gripper_controller/gripper_cmd", "GripperCommand action of the gripper controller"),
-    "gripper_max_effort": (40.0, "GripperCommand max_effort (N): the squeeze on a handle"),
+    "gripper_max_effort": (0.0, "GripperCommand max_effort (N): the grip force limit on a handle; 0 = the robot's "
+                                "default (Panda: 70 N continuous, its hand's datasheet)"),
+    "gripper_position_unit": ("gap_width", "what the gripper driver's GripperCommand position means: gap_width (m "
+                                           "between the fingers, as the message says; franka_gripper, sim_node) | "
+                                           "finger_joint (the finger joint position; ros2_control's "
+                                           "gripper_action_controller). Open/closed are converted through the "
+                                           "robot's finger geometry (actaim2.gripper)"),
     "velocity_scaling": (0.5, "fraction of the velocity/acceleration/jerk limits for goals with velocity_scaling = 0"),
     "server_wait": (3.0, "s to wait for an action server (arm: then fall back to the JTC topic)"),
     "joint_states_wait": (5.0, "s a goal waits for /joint_states when there are none yet (start-up discovery)"),
@@ -104,7 +110,8 @@ class ControlNode(Node):
         group = ReentrantCallbackGroup()
         settings = ExecutionSettings(
             arm_action=p["arm_action"], jtc_topic=p["jtc_topic"], gripper_action=p["gripper_action"],
-            gripper_max_effort=float(p["gripper_max_effort"]), server_wait=float(p["server_wait"]),
+            gripper_max_effort=float(p["gripper_max_effort"]), gripper_position_unit=str(p["gripper_position_unit"]),
+            server_wait=float(p["server_wait"]),
             goal_tolerance=float(p["goal_tolerance"]), settle_timeout=float(p["settle_timeout"]),
             timeout_factor=float(p["timeout_factor"]), timeout_margin=float(p["timeout_margin"]),
             gripper_timeout=float(p["gripper_timeout"]), joint_states_timeout=float(p["joint_states_timeout"]),

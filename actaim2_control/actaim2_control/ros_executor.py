@@ -9,7 +9,9 @@ Implements :class:`actaim2.control.executor.Executor` over ROS 2 the way a real 
   * cancel: a Ruckig stop from the measured state at full limits replaces the running
     trajectory (the controller's "new goal replaces the running one"), then the arm must be
     still - well within 0.5 s;
-  * gripper: a GripperCommand; a gripper stalled on an object counts as success.
+  * gripper: a GripperCommand to the open or closed gap, in the driver's position unit
+    (gap width or finger joint, :mod:`actaim2.gripper`), with the grip force as
+    ``max_effort``; a gripper stalled on an object counts as success.
 Waiting happens in the action server's execute thread; subscriptions and action-client
 responses are handled by the node's other executor threads.
 """
@@ -32,6 +34,7 @@ from trajectory_msgs.msg import JointTrajectoryPoint
 
 from actaim2.control.executor import StepResult
 from actaim2.control.trajectory import JointPlanner, JointTrajectory, Limits, State, sample
+from actaim2.gripper import gripper_geometry
 from actaim2.robots import RobotSpec
 
 POLL = 0.01  # s between checks while waiting
@@ -43,7 +46,8 @@ class ExecutionSettings:
     arm_action: str
     jtc_topic: str
     gripper_action: str
-    gripper_max_effort: float
+    gripper_max_effort: float  # N; 0 = the robot's default grip force
+    gripper_position_unit: str  # actaim2.gripper.POSITION_UNITS
     server_wait: float  # s to wait for an action server before giving up (arm: before the topic fallback)
     goal_tolerance: float  # rad: /joint_states this close to the last point (and still) = reached
     settle_timeout: float  # s after the controller's result (or the trajectory's end) to get there
@@ -63,6 +67,8 @@ class RosExecutor:
         self._spec = spec
         self._full_limits = limits
         self._settings = settings
+        self._gripper_geometry = gripper_geometry(spec)
+        self._gripper_geometry.to_unit(0.0, settings.gripper_position_unit)  # refuses an unknown unit at start-up
         self._arm = ActionClient(node, FollowJointTrajectory, settings.arm_action, callback_group=group)
         self._gripper = ActionClient(node, GripperCommand, settings.gripper_action, callback_group=group)
         self._topic = node.create_publisher(JointTrajectoryMsg, settings.jtc_topic, 10)
@@ -178,8 +184,10 @@ class RosExecutor:
         if not (self._gripper.server_is_ready() or self._gripper.wait_for_server(timeout_sec=s.server_wait)):
             return StepResult(False, f"no GripperCommand action server {s.gripper_action}")
         goal = GripperCommand.Goal()
-        goal.command.position = float(self._spec.gripper_closed if closed else self._spec.gripper_open)
-        goal.command.max_effort = float(s.gripper_max_effort)
+        geometry = self._gripper_geometry
+        gap = geometry.gap_from_joint(self._spec.gripper_closed if closed else self._spec.gripper_open)
+        goal.command.position = geometry.to_unit(gap, s.gripper_position_unit)
+        goal.command.max_effort = float(s.gripper_max_effort or geometry.default_force)
         sent = self._gripper.send_goal_async(goal)
         if not _wait(sent.done, s.server_wait) or not sent.result().accepted:
             return StepResult(False, f"{s.gripper_action} did not accept the command")

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
+from actaim2.gripper import POSITION_UNITS
 from actaim2.sim.cameras import RIGS
 from actaim2.sim.render_path import RENDER_PATHS
 from actaim2.sim.sensor_noise import SENSOR_NOISE_PRESETS
@@ -29,6 +30,7 @@ class SimParameters:
     action_monitor_rate: float
     arm_controller: str
     gripper_controller: str
+    gripper_position_unit: str
     goal_tolerance: float
     goal_time_tolerance: float
     gripper_goal_tolerance: float
@@ -58,10 +60,13 @@ DEFAULTS: dict[str, tuple[object, str]] = {
     "action_monitor_rate": (20.0, "FollowJointTrajectory feedback rate in sim-time Hz"),
     "arm_controller": ("joint_trajectory_controller", "namespace of the arm's action and topic (real drivers differ)"),
     "gripper_controller": ("gripper_controller", "namespace of the GripperCommand action"),
+    "gripper_position_unit": ("gap_width", "GripperCommand position: gap_width (m between the fingers, as the message "
+                                           "says and franka_gripper takes it) | finger_joint (the joint position, as "
+                                           "ros2_control's gripper_action_controller takes it)"),
     "goal_tolerance": (0.05, "default per-joint goal tolerance (rad) when a goal gives none; 0 = not checked"),
     "goal_time_tolerance": (0.5, "seconds after a trajectory's end to reach the goal tolerance"),
-    "gripper_goal_tolerance": (0.002, "finger position error that counts as reached (joint units)"),
-    "gripper_stall_velocity": (0.001, "mean finger speed over gripper_stall_timeout below which the gripper counts as "
+    "gripper_goal_tolerance": (0.002, "position error that counts as reached (in gripper_position_unit)"),
+    "gripper_stall_velocity": (0.001, "mean speed (gripper_position_unit/s) over gripper_stall_timeout below which the gripper counts as "
                                       "stopped (judged on position progress: PhysX reports a velocity for squeezing fingers)"),
     "gripper_stall_timeout": (1.0, "sim seconds the fingers must stay stopped (within gripper_stall_velocity x this "
                                    "window) before a gripper goal ends stalled"),
@@ -83,7 +88,8 @@ def declare_parameters(node: Node) -> SimParameters:
     for name, (default, description) in DYNAMIC.items():
         node.declare_parameter(name, default, ParameterDescriptor(description=description))
     p = SimParameters(**{name: node.get_parameter(name).value for name in DEFAULTS})
-    choices = {"rig": RIGS, "render_path": RENDER_PATHS, "sensor_noise": SENSOR_NOISE_PRESETS}
+    choices = {"rig": RIGS, "render_path": RENDER_PATHS, "sensor_noise": SENSOR_NOISE_PRESETS,
+               "gripper_position_unit": POSITION_UNITS}
     for name, allowed in choices.items():
         if getattr(p, name) not in allowed:
             raise ValueError(f"parameter {name}='{getattr(p, name)}' is not one of {list(allowed)}")

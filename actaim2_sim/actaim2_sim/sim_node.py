@@ -9,8 +9,11 @@ joint_trajectory_controller and gripper_action_controller, the JTC topic, and /r
 Where rclpy cannot do exactly what the C++ controllers do, the node stays as close as it can:
 an invalid trajectory goal is accepted and at once aborted with its error_code and
 error_string (a ROS 2 rejection carries no result); a goal replaced by a newer one is aborted
-with a "preempted" error_string (rclpy cannot cancel a goal nobody asked to cancel). Gripper
-positions are finger joint positions, as ros2_control commands its gripper joint.
+with a "preempted" error_string (rclpy cannot cancel a goal nobody asked to cancel).
+GripperCommand positions are gap widths in metres, as the message says (parameter
+``gripper_position_unit: finger_joint`` takes joint positions instead, as ros2_control's
+gripper_action_controller does), and ``max_effort`` is the grip force limit in N (0 = the
+robot's default, Panda 70 N); results report the position in the same unit and the force.
 
 Threading: one timer steps physics, runs the controllers and renders the cameras when their
 sim-time period is due, holding ``_lock`` (the simulation and the goal slots) while it works.
@@ -249,7 +252,7 @@ class SimNode(Node):
         now = self.env.time
         _, q, qd = self.env.joint_state()
         self._monitor_arm(now, q[: self.n_arm], qd[: self.n_arm])
-        self._monitor_gripper(now, self.env.robot.gripper_position())
+        self._monitor_gripper(now, self._gripper_position())
 
     def _monitor_arm(self, now: float, q: np.ndarray, qd: np.ndarray) -> None:
         goal = self._arm_goal
@@ -275,7 +278,7 @@ class SimNode(Node):
             return
         pending, tracker = self._gripper_goal
         if pending.handle.is_cancel_requested:
-            self.env.set_gripper(position)
+            self.env.set_gripper(self.env.robot.gripper_position())
             self._gripper_goal = None
             pending.finish("canceled", self._gripper_result(GripperOutcome(False, False, False)))
             return
@@ -349,29 +352,41 @@ class SimNode(Node):
             self.get_logger().error(f"ignored trajectory on the topic: {exc}")
 
     # -- gripper: GripperCommand ------------------------------------------------------------------
+    def _gripper_position(self) -> float:
+        """The fingers' position in ``gripper_position_unit``."""
+        robot = self.env.robot
+        return robot.gripper_position() if self.p.gripper_position_unit == "finger_joint" else robot.gripper_gap()
+
     def _gripper_result(self, outcome: GripperOutcome) -> GripperCommand.Result:
-        joint = self.env.robot.gripper_joints[0]
-        q, qd = float(self.env.robot.gripper_position()), float(self.env.joint_state()[2][self.n_arm])
-        effort = float(np.clip(joint.stiffness * (self.env.robot.gripper_target() - q) - joint.damping * qd,
+        robot = self.env.robot
+        joint = robot.gripper_joints[0]
+        q, qd = float(robot.gripper_position()), float(self.env.joint_state()[2][self.n_arm])
+        effort = float(np.clip(joint.stiffness * (robot.gripper_target() - q) - joint.damping * qd,
                                -joint.force_limit, joint.force_limit))
-        return GripperCommand.Result(position=q, effort=effort, stalled=outcome.stalled, reached_goal=outcome.reached_goal)
+        return GripperCommand.Result(position=self._gripper_position(), effort=abs(robot.gripper.force_from_effort(effort)),
+                                     stalled=outcome.stalled, reached_goal=outcome.reached_goal)
 
     def _execute_gripper(self, handle: ServerGoalHandle) -> GripperCommand.Result:
         command = handle.request.command
         pending = PendingGoal(handle)
         p = self.p
         with self._lock:
-            if self._closing or not np.isfinite(command.position):
+            problem = "" if np.isfinite(command.position) else f"position {command.position} is not finite"
+            if not (np.isfinite(command.max_effort) and command.max_effort >= 0.0):
+                problem = f"max_effort {command.max_effort} is not a force >= 0 N (0 = the default)"
+            if self._closing or problem:
                 if not self._closing:
-                    self.get_logger().error(f"rejected gripper goal: position {command.position} is not finite")
+                    self.get_logger().error(f"rejected gripper goal: {problem}")
                 handle.abort()
                 return self._gripper_result(GripperOutcome(False, False, False))
             if self._gripper_goal is not None:  # preempted, like the ros2_control controller
                 self._gripper_goal[0].finish("abort", self._gripper_result(GripperOutcome(False, False, False)))
-            tracker = GripperGoal(command.position, self.env.time, self.env.robot.gripper_position(),
+            tracker = GripperGoal(command.position, self.env.time, self._gripper_position(),
                                   p.gripper_goal_tolerance, p.gripper_stall_velocity, p.gripper_stall_timeout,
                                   p.gripper_allow_stalling)
-            self.env.set_gripper(command.position)
+            geometry = self.env.robot.gripper
+            self.env.robot.set_gripper_force(float(command.max_effort))
+            self.env.set_gripper(geometry.joint_from_gap(geometry.from_unit(command.position, p.gripper_position_unit)))
             self._gripper_goal = (pending, tracker)
         return pending.conclude()
 

@@ -104,6 +104,9 @@ class RobotSpec:
     reach: Reach | None = None  # for sampling actions (data collection); None: not given for this robot
     hand: HandGeometry | None = None
     extra: dict = field(default_factory=dict)
+    # N: grip force when a GripperCommand gives none (max_effort 0); None = the URDF's finger
+    # effort limit at the pads. Gap widths and forces <-> finger joints: actaim2.gripper.
+    gripper_force: float | None = None
 
 
 def _panda() -> RobotSpec:
@@ -133,6 +136,7 @@ def _panda() -> RobotSpec:
         # -0.097 between the fingers, its sides forward to -0.037; x +-0.032).
         hand=HandGeometry(max_opening=0.08, finger_length=0.054, finger_thickness=0.026, finger_width=0.022,
                           palm_depth=0.075, palm_width=0.21, palm_thickness=0.07, approach_distance=0.12),
+        gripper_force=70.0,  # Franka Hand datasheet: 70 N continuous grasping force (140 N maximum)
     )
 
 
@@ -297,6 +301,7 @@ def load_robot_spec(name_or_yaml: str) -> RobotSpec:
         reach=Reach(tuple(float(v) for v in cfg["reach"]["center"]), float(cfg["reach"]["min"]), float(cfg["reach"]["max"]))
         if "reach" in cfg else None,
         hand=HandGeometry(**{k: float(v) for k, v in cfg["hand"].items()}) if "hand" in cfg else None,
+        gripper_force=float(cfg["gripper_force"]) if "gripper_force" in cfg else None,
     )
 
 

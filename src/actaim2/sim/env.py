@@ -191,16 +191,18 @@ class SimEnv:
         self.robot.set_arm_target(np.asarray(q, dtype=float), None if qd is None else np.asarray(qd, dtype=float))
 
     def set_gripper(self, position: float) -> None:
-        """Finger joint target (``spec.gripper_open`` .. ``spec.gripper_closed``)."""
+        """Finger joint target (``spec.gripper_open`` .. ``spec.gripper_closed``; gap widths: ``robot.gripper``)."""
         self.robot.set_gripper_target(position)
 
-    def grip(self, closed: bool, opening: float = 1.0, timeout: float = 1.5) -> float:
-        """Close (or open, to ``opening`` of the full stroke) the gripper and step until the
-        fingers stop, on the handle or at their target; returns the finger position (a closed
-        gripper stalled on a handle stops early). Stopped is judged as GripperCommand goals are
+    def grip(self, closed: bool, opening: float = 1.0, timeout: float = 1.5, force: float = 0.0) -> float:
+        """Close (or open, to ``opening`` of the full stroke) the gripper with a grip force limit
+        of ``force`` N (0 = the robot's default) and step until the fingers stop, on the handle
+        or at their target; returns the finger position (a closed gripper stalled on a handle
+        stops early). Stopped is judged as GripperCommand goals are
         (:mod:`actaim2.sim.gripper_action`), over a window of ``GRIP_STALL_WINDOW`` seconds."""
         spec = self.spec
         target = spec.gripper_closed if closed else spec.gripper_closed + opening * (spec.gripper_open - spec.gripper_closed)
+        self.robot.set_gripper_force(force)
         self.set_gripper(target)
         goal = GripperGoal(target, self.time, self.robot.gripper_position(), GRIP_REACHED, GRIP_STALL_SPEED,
                            GRIP_STALL_WINDOW, allow_stalling=True)

@@ -12,8 +12,9 @@ micrometres between samples: neither an instantaneous velocity nor a difference 
 tells a squeeze from slow motion, the travel over a whole window does.
 
 With ``allow_stalling`` a stall is a success - a gripper closed on a handle is exactly what a
-grasp looks like - otherwise it aborts. Positions are finger joint positions, as the
-ros2_control controller commands its joint (not the gap the GripperCommand comment mentions).
+grasp looks like - otherwise it aborts. Positions are in whatever unit the caller uses
+throughout (the sim node: gap width in metres, or finger joint positions; see its
+``gripper_position_unit``).
 """
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ class GripperOutcome:
 
 
 class GripperGoal:
-    """One gripper goal being executed (positions in finger joint units, times in seconds)."""
+    """One gripper goal being executed (positions in one unit throughout, times in seconds)."""
 
     def __init__(
         self,

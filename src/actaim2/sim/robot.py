@@ -7,10 +7,16 @@
 * Gravity compensation. The robot's links ignore gravity: the ideal compensation a real
   torque-controlled arm (Panda, Jaco2) runs underneath position control. Forces from contacts
   and from whatever the gripper holds still act.
-* Gripper. The finger joints are driven to a target with a force (torque) limit, and their
-  speed is capped like a real gripper's. A grasp is friction between finger pads and the
-  handle, nothing else: no attachment constraint, no joint is ever created on grasp, so
-  opening the fingers releases the part. The fingers get a high-friction material.
+* Gripper. The finger joints are driven to a target with a force limit -- the grip force,
+  per command (GripperCommand ``max_effort``) or the robot's default (Panda: 70 N
+  continuous), converted to a joint effort through the pads' lever (:mod:`actaim2.gripper`)
+  -- and their speed is capped like a real gripper's. The drive is stiff enough that a
+  finger blocked more than ``GRIP_SATURATION_GAP`` short of its target pushes with the full
+  limit: fingers closed on a handle squeeze it with the grip force, as a force-controlled
+  gripper does. A grasp is friction between finger pads and the handle, nothing else: no
+  attachment constraint, no joint is ever created on grasp, so opening the fingers releases
+  the part, and a part pulled harder than friction x grip force slips out. The fingers get
+  a high-friction material.
 
 The URDF comes from :func:`actaim2.robots.movable_gripper_urdf` (gripper joints movable,
 absolute mesh paths) - the same file Pinocchio loads for control.
@@ -22,10 +28,13 @@ from dataclasses import dataclass
 import numpy as np
 import sapien
 
+from actaim2.gripper import gripper_geometry
 from actaim2.robots import RobotSpec, movable_gripper_urdf, urdf_joint_limits
 from actaim2.sim.urdf import parse_urdf
 
 FINGER_FRICTION = 1.2  # rubber-like finger pads
+GRIP_SATURATION_GAP = 1e-3  # m of gap short of the target at which a finger pushes with its full force
+GRIP_TIME_CONSTANT = 0.01  # s: gripper drive damping = stiffness x this (no overshoot at the target)
 
 
 @dataclass(frozen=True)
@@ -34,9 +43,8 @@ class DriveGains:
 
     arm_stiffness: float = 10000.0
     arm_damping: float = 1000.0
-    gripper_stiffness: float = 2000.0
-    gripper_damping: float = 60.0
-    gripper_force: float | None = None  # per finger; None = the URDF effort limit
+    gripper_stiffness: float | None = None  # None: the default grip force over GRIP_SATURATION_GAP (joint units)
+    gripper_damping: float | None = None  # None: stiffness x GRIP_TIME_CONSTANT
     gripper_speed: float | None = None  # per finger (m/s or rad/s); None = the URDF velocity limit
 
 
@@ -71,9 +79,12 @@ class SimRobot:
         self.gripper_index = np.array([active.index(n) for n in spec.gripper_joints])
         for j in self.arm_joints:
             j.set_drive_property(gains.arm_stiffness, gains.arm_damping, force_limit=limits[j.name][0])
+        self.gripper = gripper_geometry(spec)
+        per_gap = abs(self.gripper.joint_from_gap(GRIP_SATURATION_GAP) - self.gripper.joint_from_gap(0.0))
+        self._gripper_stiffness = gains.gripper_stiffness or self.gripper.effort_from_force(0.0) / per_gap
+        self._gripper_damping = gains.gripper_damping or self._gripper_stiffness * GRIP_TIME_CONSTANT
+        self.set_gripper_force(0.0)
         for j in self.gripper_joints:
-            force = gains.gripper_force if gains.gripper_force is not None else limits[j.name][0]
-            j.set_drive_property(gains.gripper_stiffness, gains.gripper_damping, force_limit=force)
             j.set_max_velocity(gains.gripper_speed if gains.gripper_speed is not None else limits[j.name][1])
         for link in self.articulation.links:
             link.disable_gravity = True
@@ -129,6 +140,19 @@ class SimRobot:
         """Drive every finger joint towards ``position`` (the spec's open / closed values or between)."""
         for joint in self.gripper_joints:
             joint.set_drive_target(float(position))
+
+    def set_gripper_force(self, force: float) -> None:
+        """Grip force limit in N (0 = the robot's default), as GripperCommand's ``max_effort``."""
+        if not (np.isfinite(force) and force >= 0.0):
+            raise ValueError(f"grip force must be a finite number >= 0 N, got {force}")
+        self.grip_force = force if force > 0.0 else self.gripper.default_force
+        effort = self.gripper.effort_from_force(self.grip_force)
+        for j in self.gripper_joints:
+            j.set_drive_property(self._gripper_stiffness, self._gripper_damping, force_limit=effort)
+
+    def gripper_gap(self) -> float:
+        """Gap width (m) between the finger pads."""
+        return self.gripper.gap_from_joint(self.gripper_position())
 
     def arm_target(self) -> np.ndarray:
         return np.array([float(j.drive_target[0]) for j in self.arm_joints])
