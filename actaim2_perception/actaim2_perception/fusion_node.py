@@ -1,8 +1,9 @@
 """fusion_node: camera clouds in, /fused_points, /ortho_views and /ortho_views/preview out.
 
 A thin adapter over ``actaim2.perception``: it synchronises the cloud topics, looks up their
-extrinsics (/tf_static or a calibration YAML), keeps the self-filter at the latest
-/joint_states, and publishes what ``Perception.process`` returns. Bad input (empty or all-NaN
+extrinsics (/tf_static or a calibration YAML), keeps a short history of /joint_states so the
+self-filter poses the robot as it stood at each cloud's stamp (``actaim2.perception.joint_history``),
+and publishes what ``Perception.process`` returns. Bad input (empty or all-NaN
 clouds, missing fields, unknown frames, stamps too far apart, nothing inside the workspace) is
 reported once per cause and topic, throttled, and the set is dropped: nothing half-made is
 ever published, and the node keeps running.
@@ -30,10 +31,17 @@ from sensor_msgs.msg import Image, JointState, PointCloud2
 
 from actaim2.perception.calibration import load_calibration
 from actaim2.perception.cloud_codec import CloudFormatError
-from actaim2.perception.fusion import CameraCloud, FusionConfig
-from actaim2.perception.ortho_views import CHANNELS, VIEWS, rgb_mosaic
-from actaim2.perception.pipeline import EmptyObservationError, Perception, PerceptionConfig
-from actaim2.perception.self_filter import DEFAULT_MARGIN, RobotSelfFilter
+from actaim2.perception.config import load_perception_config
+from actaim2.perception.fusion import CameraCloud
+from actaim2.perception.joint_history import (
+    DEFAULT_HISTORY,
+    DEFAULT_MAX_EXTRAPOLATION,
+    JointStateHistory,
+    JointStateUnavailable,
+)
+from actaim2.perception.ortho_views import VIEWS, rgb_mosaic
+from actaim2.perception.pipeline import EmptyObservationError, Perception
+from actaim2.perception.self_filter import RobotSelfFilter
 from actaim2.perception.static_tf import StaticTransformBuffer, UnknownFrameError
 from actaim2.perception.time_sync import ApproximateTimeSync
 from actaim2.robots import load_robot_spec
@@ -42,8 +50,6 @@ from actaim2_perception.pointcloud2 import from_msg, to_msg
 from actaim2_perception.transforms import listen_tf_static
 
 VIEWS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
-_FUSION = FusionConfig()  # the library's defaults, so node, CLI and training agree
-_PERCEPTION = PerceptionConfig(_FUSION)
 
 PARAMETERS = {
     # name: (default, description)
@@ -51,19 +57,25 @@ PARAMETERS = {
     "sync_slop": (0.05, "s: clouds whose stamps lie within this window are fused together"),
     "calibration_file": ("", "extrinsics YAML (frame -> 4x4); empty = take them from /tf_static"),
     "world_frame": ("world", "frame of the fused cloud and the views"),
-    "workspace_center": (list(_FUSION.center), "m, world: centre of the workspace cube (crop and views)"),
-    "workspace_half_extent": (_FUSION.half_extent, "m: half the side of the workspace cube"),
-    "voxel_size": (_FUSION.voxel_size, "m: voxel grid of the fused cloud; 0 keeps every point"),
-    "outlier_neighbors": (_FUSION.outlier_neighbors, "statistical outlier removal: neighbours per point; 0 disables it"),
-    "outlier_std_ratio": (_FUSION.outlier_std_ratio, "statistical outlier removal: drop points beyond mean + ratio * std"),
-    "resolution": (_PERCEPTION.resolution, "pixels per side of each orthographic view (128 default, 224 supported)"),
+    "perception_config": (
+        "azure_kinect",
+        "rig name (ring5, azure_kinect: actaim2/perception/configs/<rig>.yaml) or a PerceptionConfig YAML: the cube, "
+        "fusion, robot-hidden views and view rendering; its digest is stamped on every /ortho_views",
+    ),
     "robot": ("panda", "robot preset or RobotSpec YAML whose collision geometry the self-filter removes"),
-    "self_filter_margin": (DEFAULT_MARGIN, "m: points this close to the robot's collision geometry are removed"),
-    "remove_robot_fused": (_PERCEPTION.remove_robot_fused, "remove robot points from /fused_points"),
-    "remove_robot_views": (
-        _PERCEPTION.remove_robot_views, "remove robot points from /ortho_views (the policy is trained robot-hidden)"
+    "remove_robot_fused": (
+        False, "remove robot points from /fused_points too (it then waits for /joint_states, as robot-hidden views do)"
     ),
     "joint_states_topic": ("/joint_states", "robot joint positions for the self-filter"),
+    "joint_state_history": (DEFAULT_HISTORY, "s of /joint_states kept to pose the robot at each cloud's stamp"),
+    "joint_state_max_extrapolation": (
+        DEFAULT_MAX_EXTRAPOLATION,
+        "s: a cloud stamped up to this long after the newest JointState is filtered with extrapolated joints; "
+        "later ones are dropped with the reason logged",
+    ),
+    "joint_state_wait": (
+        0.1, "s the worker waits for a JointState at or after a cloud's stamp (to interpolate) before extrapolating",
+    ),
     "report_period": (10.0, "s: a given bad-input cause is logged at most once per period"),
     "torch_threads": (1, "CPU threads for fusion and rendering; 1 avoids OpenMP spin contention on small machines"),
 }
@@ -95,20 +107,18 @@ class FusionNode(Node):
         self._world = p["world_frame"]
         self._report = ThrottledReporter(self, float(p["report_period"]))
 
-        needs_robot = bool(p["remove_robot_fused"] or p["remove_robot_views"])
-        self_filter = RobotSelfFilter(load_robot_spec(p["robot"]), p["self_filter_margin"]) if needs_robot else None
-        fusion = FusionConfig(
-            center=tuple(float(c) for c in p["workspace_center"]),
-            half_extent=float(p["workspace_half_extent"]),
-            voxel_size=float(p["voxel_size"]),
-            outlier_neighbors=int(p["outlier_neighbors"]),
-            outlier_std_ratio=float(p["outlier_std_ratio"]),
-        )
-        self._perception = Perception(
-            PerceptionConfig(fusion, int(p["resolution"]), bool(p["remove_robot_fused"]), bool(p["remove_robot_views"])),
-            self_filter,
-        )
-        self._joint_state: JointState | None = None  # newest, applied by the worker before each set
+        config = load_perception_config(p["perception_config"])
+        self._remove_robot_fused = bool(p["remove_robot_fused"])
+        needs_robot = self._remove_robot_fused or config.remove_robot_views
+        self_filter = RobotSelfFilter(load_robot_spec(p["robot"]), config.self_filter_margin) if needs_robot else None
+        self._perception = Perception(config, self_filter)
+        self._digest = config.digest()
+        self._has_preview = {"r", "g", "b", "occupancy"} <= set(config.channels)  # the mosaic needs colour
+        # Outputs that wait for /joint_states; /fused_points unfiltered never does.
+        self._waiting = [t for t, filtered in (("/fused_points", self._remove_robot_fused), ("/ortho_views", config.remove_robot_views)) if filtered]
+        self._joint_history = JointStateHistory(float(p["joint_state_history"]), float(p["joint_state_max_extrapolation"]))
+        self._joint_wait = float(p["joint_state_wait"])
+        self._joint_arrived = threading.Condition()  # guards the history: filled by the executor, read by the worker
         self._needs_joints = needs_robot
         self._pending: list[PointCloud2] | None = None
         self._wakeup = threading.Condition()
@@ -133,15 +143,23 @@ class FusionNode(Node):
             self.create_subscription(JointState, p["joint_states_topic"], self._on_joint_state, 10)
         self._worker.start()
         self.get_logger().info(
-            f"fusing {self._topics} into '{self._world}' (cube {list(fusion.center)} +- {fusion.half_extent} m, "
-            f"{p['resolution']} px views, extrinsics from {p['calibration_file'] or '/tf_static'})"
+            f"fusing {self._topics} into '{self._world}' with perception configuration {config.rig} (digest {self._digest}: "
+            f"cube {list(config.center)} +- {config.half_extent} m, {config.resolution} px views), extrinsics from "
+            f"{p['calibration_file'] or '/tf_static'}; robot-filtered outputs waiting for {p['joint_states_topic']}: "
+            f"{self._waiting or 'none'}"
         )
 
     def _on_joint_state(self, msg: JointState) -> None:
         if len(msg.position) != len(msg.name):
             self._report("joint_states", f"JointState with {len(msg.name)} names but {len(msg.position)} positions")
             return
-        self._joint_state = msg
+        stamp = Time.from_msg(msg.header.stamp).nanoseconds
+        if stamp == 0:
+            self._report("joint_states:stamp", "JointState without a stamp: it cannot be matched to the clouds' stamps")
+            return
+        with self._joint_arrived:
+            self._joint_history.add(stamp, list(msg.name), list(msg.position))
+            self._joint_arrived.notify_all()
 
     def _on_cloud(self, index: int, msg: PointCloud2) -> None:
         group = self._sync.add(index, Time.from_msg(msg.header.stamp).nanoseconds, msg)
@@ -199,41 +217,59 @@ class FusionNode(Node):
         clouds = [self._decode(topic, msg) for topic, msg in zip(self._topics, msgs)]
         if any(c is None for c in clouds):
             return
-        if self._needs_joints:
-            joints = self._joint_state
-            if joints is None:
-                self._report("joint_states", "no JointState received yet: the robot cannot be removed")
-                return
-            self._perception.self_filter.set_joint_positions(list(joints.name), list(joints.position))
         try:
-            observation = self._perception.process(clouds)
+            fused = self._perception.fuse(clouds)
         except EmptyObservationError as exc:
             self._report("workspace", str(exc))
             return
         stamp = max((m.header.stamp for m in msgs), key=lambda s: Time.from_msg(s).nanoseconds)
-        self._views_pub.publish(self._views_msg(observation.views, stamp))
-        if self._fused_pub.get_subscription_count():
-            self._fused_pub.publish(to_msg(observation.fused.xyz, observation.fused.rgb, self._world, stamp))
-        if self._preview_pub.get_subscription_count():
-            self._preview_pub.publish(self._preview_msg(observation.views, stamp))
+        # The unfiltered cloud goes out as soon as clouds arrive: it needs no joint state.
+        if not self._remove_robot_fused and self._fused_pub.get_subscription_count():
+            self._fused_pub.publish(to_msg(fused.xyz, fused.rgb, self._world, stamp))
+        if self._needs_joints and not self._pose_robot_at(msgs):
+            return
+        without_robot = self._perception.without_robot(fused) if self._needs_joints else fused
+        if self._remove_robot_fused and self._fused_pub.get_subscription_count():
+            self._fused_pub.publish(to_msg(without_robot.xyz, without_robot.rgb, self._world, stamp))
+        views = self._perception.render(without_robot if self._perception.config.remove_robot_views else fused)
+        self._views_pub.publish(self._views_msg(views, stamp))
+        if self._preview_pub.get_subscription_count() and self._has_preview:
+            self._preview_pub.publish(self._preview_msg(views, stamp))
+
+    def _pose_robot_at(self, msgs: list[PointCloud2]) -> bool:
+        """Pose the self-filter's robot at each distinct cloud stamp of the set; False (reason
+        logged) when the joint states there are unknown."""
+        stamps = sorted({Time.from_msg(m.header.stamp).nanoseconds for m in msgs})
+        deadline = time.monotonic() + self._joint_wait
+        try:
+            with self._joint_arrived:
+                while not self._joint_history.covers(stamps[-1]) and (left := deadline - time.monotonic()) > 0:
+                    self._joint_arrived.wait(left)  # the JointState just after the cloud is usually on its way
+                configurations = [self._joint_history.at(stamp) for stamp in stamps]
+        except JointStateUnavailable as exc:
+            self._report("joint_states:unknown", f"{', '.join(self._waiting)} wait: the robot cannot be removed: {exc}")
+            return False
+        self._perception.self_filter.set_configurations(configurations)
+        return True
 
     def _views_msg(self, views: np.ndarray, stamp) -> OrthoViews:
-        fusion = self._perception.config.fusion
+        config = self._perception.config
         msg = OrthoViews()
         msg.header.stamp = stamp
         msg.header.frame_id = self._world
         msg.height, msg.width = int(views.shape[2]), int(views.shape[3])
         msg.views = list(VIEWS)
-        msg.channels = list(CHANNELS)
+        msg.channels = list(config.channels)
         data = array.array("f")
         data.frombytes(np.ascontiguousarray(views, dtype=np.float32).tobytes())
         msg.data = data
-        msg.center.x, msg.center.y, msg.center.z = (float(c) for c in fusion.center)
-        msg.half_extent = float(fusion.half_extent)
+        msg.center.x, msg.center.y, msg.center.z = config.center
+        msg.half_extent = float(config.half_extent)
+        msg.config_digest = self._digest
         return msg
 
     def _preview_msg(self, views: np.ndarray, stamp) -> Image:
-        mosaic = rgb_mosaic(views)
+        mosaic = rgb_mosaic(views, self._perception.config.channels)
         msg = Image()
         msg.header.stamp = stamp
         msg.header.frame_id = self._world

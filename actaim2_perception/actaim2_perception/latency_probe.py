@@ -73,6 +73,7 @@ class LatencyProbe(Node):
             self._finish(None)
             return
         stamp = self.get_clock().now()
+        self._joints.header.stamp = stamp.to_msg()  # the self-filter poses the robot at the clouds' stamp
         self._joint_pub.publish(self._joints)
         for publisher, msg in zip(self._publishers, self._clouds):
             msg.header.stamp = stamp.to_msg()

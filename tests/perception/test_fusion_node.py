@@ -20,7 +20,8 @@ from sensor_msgs.msg import Image, JointState, PointCloud2, PointField
 from tf2_msgs.msg import TFMessage
 
 from actaim2.geometry import T_ENTITY_OPTICAL, pose_to_matrix
-from actaim2.perception.ortho_views import CHANNELS, VIEWS, project
+from actaim2.perception.config import PerceptionConfig, load_perception_config, save_perception_config
+from actaim2.perception.ortho_views import CHANNELS, VIEWS, cube_to_world, project
 from actaim2.perception.synthetic import RaycastScene, box_mesh, robot_collision_meshes
 from actaim2.robots import load_robot_spec
 from actaim2.sim.cameras import look_at_optical
@@ -38,14 +39,16 @@ BOX_CENTER, BOX_SIZE = np.array([0.6, 0.25, 0.15]), np.array([0.2, 0.2, 0.3])
 # camera_base has x forward, z up; the driver's depth_camera_link is an optical frame 1.8 mm above it.
 T_BASE_DEPTH = T_ENTITY_OPTICAL @ pose_to_matrix([0.0, 0.0018, 0.0], [0.0, 0.0, 0.0, 1.0])
 T_WORLD_BASE = look_at_optical([1.4, 0.5, 0.9], [0.5, 0.1, 0.2]) @ np.linalg.inv(T_BASE_DEPTH)
-NODE_PARAMS = {
-    "cloud_topics": ["/points2"],
-    "workspace_center": list(CENTER),
-    "workspace_half_extent": HALF,
-    "remove_robot_fused": False,
-    "remove_robot_views": True,
-    "report_period": 60.0,
-}
+NODE_PARAMS = {"cloud_topics": ["/points2"], "remove_robot_fused": False, "report_period": 60.0}
+# The Azure Kinect rig's configuration around this scene's smaller cube.
+PERCEPTION = load_perception_config("azure_kinect").replace(center=CENTER, half_extent=HALF)
+
+
+def node_params(tmp_path, perception: PerceptionConfig = PERCEPTION, **params) -> dict:
+    """NODE_PARAMS (+ overrides) with ``perception`` written to a YAML the node loads."""
+    path = tmp_path / f"perception_{perception.digest()}.yaml"
+    save_perception_config(perception, path)
+    return dict(NODE_PARAMS, perception_config=str(path), **params)
 
 
 @pytest.fixture(scope="module")
@@ -98,9 +101,9 @@ def send_tf_chain(node) -> None:
     StaticTransformPublisher(node).send([matrix_to_transform(T_BASE_DEPTH, "camera_base", "depth_camera_link")])
 
 
-def test_azure_kinect_cloud_through_a_two_link_tf_chain(ros_node, start_node, azure_cloud, panda_joints):
+def test_azure_kinect_cloud_through_a_two_link_tf_chain(ros_node, start_node, azure_cloud, panda_joints, tmp_path):
     _, joints = panda_joints
-    process = start_node("actaim2_perception", "fusion_node", NODE_PARAMS)
+    process = start_node("actaim2_perception", "fusion_node", node_params(tmp_path))
     send_tf_chain(ros_node)
     cloud_pub = ros_node.create_publisher(PointCloud2, "/points2", qos_profile_sensor_data)
     joint_pub = ros_node.create_publisher(JointState, "/joint_states", 10)
@@ -115,7 +118,9 @@ def test_azure_kinect_cloud_through_a_two_link_tf_chain(ros_node, start_node, az
     assert (msg.point_step, msg.height, msg.width) == (16, 288, 320)
 
     def joint_state_and_cloud():
-        joint_pub.publish(JointState(name=list(joints), position=list(joints.values())))
+        state = JointState(name=list(joints), position=list(joints.values()))
+        state.header.stamp = stamp  # the robot is removed as it stood at the cloud's stamp
+        joint_pub.publish(state)
         return msg
 
     received = lambda: views.latest() is not None and fused.latest() is not None and preview.latest() is not None  # noqa: E731
@@ -125,15 +130,16 @@ def test_azure_kinect_cloud_through_a_two_link_tf_chain(ros_node, start_node, az
     assert out.header.frame_id == "world" and list(out.views) == list(VIEWS) and list(out.channels) == list(CHANNELS)
     data = np.asarray(out.data, dtype=np.float32).reshape(len(VIEWS), len(CHANNELS), out.height, out.width)
     assert out.height == out.width == 128 and out.half_extent == pytest.approx(HALF)
+    assert out.config_digest == PERCEPTION.digest()  # the configuration that made the views
 
-    # The box's top face, seen from above: the expected pixel holds the face's world point and depth.
+    # The box's top face, seen from above: the expected pixel holds the face's point (cube frame) and depth.
     top = VIEWS.index("top")
     face_point = BOX_CENTER + [0.0, 0.0, BOX_SIZE[2] / 2]
     u, v, depth = (a[top, 0] for a in project(face_point, CENTER, HALF, 128))
     pixel = data[top, :, int(v), int(u)]
     assert pixel[CHANNELS.index("occupancy")] == 1.0
-    np.testing.assert_allclose(pixel[[CHANNELS.index(c) for c in "xyz"]], face_point, atol=0.01)
-    np.testing.assert_allclose(pixel[CHANNELS.index("depth")], depth, atol=0.002)
+    np.testing.assert_allclose(cube_to_world(pixel[[CHANNELS.index(c) for c in "xyz"]], CENTER, HALF), face_point, atol=0.01)
+    np.testing.assert_allclose(pixel[CHANNELS.index("depth")] * 2 * HALF, depth, atol=0.002)
 
     # /fused_points keeps the robot (remove_robot_fused false), the views do not show it.
     fused_xyz = from_msg(fused.latest()).xyz
@@ -142,14 +148,14 @@ def test_azure_kinect_cloud_through_a_two_link_tf_chain(ros_node, start_node, az
     hand_region = lambda p: (np.abs(p[:, 0] - 0.31) < 0.08) & (np.abs(p[:, 1]) < 0.12) & (p[:, 2] > 0.45)  # noqa: E731
     assert hand_region(fused_xyz).sum() > 50
     occupied = data[:, CHANNELS.index("occupancy")] > 0
-    view_points = data.transpose(0, 2, 3, 1)[occupied][:, [CHANNELS.index(c) for c in "xyz"]]
+    view_points = cube_to_world(data.transpose(0, 2, 3, 1)[occupied][:, [CHANNELS.index(c) for c in "xyz"]], CENTER, HALF)
     assert hand_region(view_points).sum() == 0
     assert (preview.latest().height, preview.latest().width, preview.latest().encoding) == (128, 640, "rgb8")
     assert process.alive()
 
 
-def test_bad_input_is_logged_once_per_cause_and_never_published(ros_node, start_node, azure_cloud):
-    params = dict(NODE_PARAMS, cloud_topics=["/points2", "/cam2/points"], remove_robot_views=False, sync_slop=0.02)
+def test_bad_input_is_logged_once_per_cause_and_never_published(ros_node, start_node, azure_cloud, tmp_path):
+    params = node_params(tmp_path, PERCEPTION.replace(remove_robot_views=False), cloud_topics=["/points2", "/cam2/points"], sync_slop=0.02)
     process = start_node("actaim2_perception", "fusion_node", params)
     send_tf_chain(ros_node)
     pubs = [ros_node.create_publisher(PointCloud2, t, qos_profile_sensor_data) for t in params["cloud_topics"]]
@@ -198,7 +204,7 @@ def test_bad_input_is_logged_once_per_cause_and_never_published(ros_node, start_
 def test_extrinsics_from_a_calibration_file(ros_node, start_node, azure_cloud, tmp_path):
     calibration = tmp_path / "calibration.yaml"
     calibration.write_text(yaml.safe_dump({"transforms": {"depth_camera_link": (T_WORLD_BASE @ T_BASE_DEPTH).tolist()}}))
-    params = dict(NODE_PARAMS, calibration_file=str(calibration), remove_robot_views=False)
+    params = node_params(tmp_path, PERCEPTION.replace(remove_robot_views=False), calibration_file=str(calibration))
     process = start_node("actaim2_perception", "fusion_node", params)
     cloud_pub = ros_node.create_publisher(PointCloud2, "/points2", qos_profile_sensor_data)
     views = Inbox(ros_node, OrthoViews, "/ortho_views", QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
@@ -209,7 +215,61 @@ def test_extrinsics_from_a_calibration_file(ros_node, start_node, azure_cloud, t
     top = VIEWS.index("top")
     face_point = BOX_CENTER + [0.0, 0.0, BOX_SIZE[2] / 2]
     u, v, _ = (a[top, 0] for a in project(face_point, CENTER, HALF, 128))
-    np.testing.assert_allclose(data[top, [CHANNELS.index(c) for c in "xyz"], int(v), int(u)], face_point, atol=0.01)
+    np.testing.assert_allclose(cube_to_world(data[top, [CHANNELS.index(c) for c in "xyz"], int(v), int(u)], CENTER, HALF), face_point, atol=0.01)
+
+
+def record_azure_bag(path, cloud_xyz: np.ndarray, frames: int) -> None:
+    """What an Azure Kinect recording holds without an arm: /tf_static (calibration + driver edges) and /points2."""
+    from rclpy.serialization import serialize_message
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_JAZZY)
+    tf = TFMessage(transforms=[matrix_to_transform(T_WORLD_BASE, "world", "camera_base"),
+                               matrix_to_transform(T_BASE_DEPTH, "camera_base", "depth_camera_link")])
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        tf_connection = writer.add_connection("/tf_static", "tf2_msgs/msg/TFMessage", typestore=store)
+        cloud_connection = writer.add_connection("/points2", "sensor_msgs/msg/PointCloud2", typestore=store)
+        writer.write(tf_connection, 1_000_000_000, serialize_message(tf))
+        for k in range(frames):
+            stamp_ns = 1_000_000_000 + k * 66_666_667  # 15 Hz
+            msg = to_msg(cloud_xyz, None, "depth_camera_link")
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, 1_000_000_000)
+            writer.write(cloud_connection, stamp_ns, serialize_message(msg))
+
+
+def test_azure_replay_without_joint_states_gives_fused_points(ros_node, start_node, azure_cloud, tmp_path):
+    """A new user replays an Azure Kinect recording (/points2 + /tf_static, no /joint_states) into
+    fusion_node with its shipped defaults: /fused_points comes out in `world` although no joint
+    state ever arrives; only the robot-hidden views wait, and the log says why."""
+    from rclpy.serialization import deserialize_message
+    from rosbags.highlevel import AnyReader
+
+    record_azure_bag(tmp_path / "azure_bag", azure_cloud, frames=3)
+    with AnyReader([tmp_path / "azure_bag"]) as reader:
+        recorded = [(c.topic, raw) for c, _, raw in reader.messages()]
+    tf = deserialize_message(next(raw for topic, raw in recorded if topic == "/tf_static"), TFMessage)
+    clouds = [deserialize_message(raw, PointCloud2) for topic, raw in recorded if topic == "/points2"]
+
+    process = start_node("actaim2_perception", "fusion_node")  # no parameters: the shipped defaults
+    StaticTransformPublisher(ros_node).send(list(tf.transforms))
+    cloud_pub = ros_node.create_publisher(PointCloud2, "/points2", qos_profile_sensor_data)
+    fused = Inbox(ros_node, PointCloud2, "/fused_points", qos_profile_sensor_data)
+    views = Inbox(ros_node, OrthoViews, "/ortho_views", QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE))
+    assert wait_for(lambda: cloud_pub.get_subscription_count() > 0, 30.0), process.output()
+    frame = iter(range(10**6))
+    assert publish_until(cloud_pub, lambda: clouds[next(frame) % len(clouds)], lambda: fused.latest() is not None), process.output()
+
+    out = fused.latest()
+    assert out.header.frame_id == "world"
+    xyz = from_msg(out).xyz
+    perception = load_perception_config("azure_kinect")
+    assert len(xyz) > 1000 and np.all(np.abs(xyz - perception.center) <= perception.half_extent + 1e-6)
+    top_face = (np.abs(xyz[:, :2] - BOX_CENTER[:2]) < 0.08).all(axis=1) & (np.abs(xyz[:, 2] - BOX_CENTER[2] - BOX_SIZE[2] / 2) < 0.01)
+    assert top_face.sum() > 50  # the box's top face, where the recording's extrinsics put it
+    assert wait_for(lambda: "/ortho_views wait" in process.output(), 10.0), process.output()
+    assert views.latest() is None  # robot-hidden views need the robot's joint states
+    assert process.alive()
 
 
 def test_calibration_publisher_latches_the_yaml_on_tf_static(ros_node, start_node, tmp_path):

@@ -3,7 +3,9 @@
 The mode selector is trained on observations in which the robot is hidden; a real arm cannot be
 hidden, so its points are removed here instead, making deployment views look like training
 views. Geometry is the URDF's collision model as loaded by Pinocchio (coal shapes), posed with
-forward kinematics at the latest /joint_states. Each collision shape is replaced by a tight
+forward kinematics at the joint positions of the cloud's stamp (``joint_history``). Clouds fused
+together may carry different stamps; the robot is then removed as it stood at each of them
+(:meth:`RobotSelfFilter.set_configurations`). Each collision shape is replaced by a tight
 bounding polytope (support planes in 90 fixed directions; the Panda's collision meshes are
 convex, so this is within millimetres of the mesh) and a point is removed when it lies inside
 that polytope grown by ``margin``: growing the faces outward removes the sensor noise around the
@@ -109,30 +111,46 @@ class RobotSelfFilter:
             vertices = shape_vertices(obj.geometry)
             self._shapes.append(_Shape(obj.parentJoint, obj.placement.homogeneous, vertices, _bounding_planes(vertices)))
         self._q = pin.neutral(self.model)
+        self._configurations = [self._q.copy()]  # the robot is removed as it stands in each of these
         self._posed: list[tuple[torch.Tensor, torch.Tensor, np.ndarray, np.ndarray]] | None = None
 
     def set_joint_positions(self, names: list[str], positions: list[float] | np.ndarray) -> None:
         """Update from a JointState; joints the URDF does not have are ignored, missing ones keep their value."""
-        set_configuration(self.model, self._q, dict(zip(names, positions)))
+        self.set_configurations([dict(zip(names, positions))])
+
+    def set_configurations(self, joint_positions: list[dict[str, float]]) -> None:
+        """Remove the robot as it stood at each of these joint positions (one per distinct cloud
+        stamp of a fused set). Each starts from the previous update's values for joints it lacks."""
+        if not joint_positions:
+            raise ValueError("set_configurations needs at least one set of joint positions")
+        configurations = []
+        for positions in joint_positions:
+            q = self._q.copy()
+            set_configuration(self.model, q, positions)
+            configurations.append(q)
+        self._q = configurations[-1]
+        self._configurations = configurations
         self._posed = None
 
     def _pose(self) -> list[tuple[torch.Tensor, torch.Tensor, np.ndarray, np.ndarray]]:
-        """Per shape: world-frame plane normals (F, 3) and offsets (F, 1) grown by the margin, and the grown world AABB."""
+        """Per shape and configuration: world-frame plane normals (F, 3) and offsets (F, 1) grown
+        by the margin, and the grown world AABB."""
         if self._posed is None:
-            pin.forwardKinematics(self.model, self._data, self._q)
             posed = []
-            for shape in self._shapes:
-                T = self._data.oMi[shape.joint].homogeneous @ shape.placement
-                R, t = T[:3, :3], T[:3, 3]
-                normals = shape.planes[:, :3] @ R.T
-                offsets = shape.planes[:, 3] - normals @ t - self.margin
-                world_vertices = shape.vertices @ R.T + t
-                posed.append((
-                    torch.from_numpy(np.ascontiguousarray(normals, dtype=np.float32)),
-                    torch.from_numpy(offsets.astype(np.float32)[:, None]),
-                    world_vertices.min(axis=0) - self.margin,
-                    world_vertices.max(axis=0) + self.margin,
-                ))
+            for q in self._configurations:
+                pin.forwardKinematics(self.model, self._data, q)
+                for shape in self._shapes:
+                    T = self._data.oMi[shape.joint].homogeneous @ shape.placement
+                    R, t = T[:3, :3], T[:3, 3]
+                    normals = shape.planes[:, :3] @ R.T
+                    offsets = shape.planes[:, 3] - normals @ t - self.margin
+                    world_vertices = shape.vertices @ R.T + t
+                    posed.append((
+                        torch.from_numpy(np.ascontiguousarray(normals, dtype=np.float32)),
+                        torch.from_numpy(offsets.astype(np.float32)[:, None]),
+                        world_vertices.min(axis=0) - self.margin,
+                        world_vertices.max(axis=0) + self.margin,
+                    ))
             self._posed = posed
         return self._posed
 
