@@ -1,0 +1,133 @@
+"""What every mode selector P(eps | O_init) shares: configuration, condition encoder, z scaling, sampling result.
+
+The CGMVAE (``selector.py``) and the baselines (``baselines/cvae.py``, ``baselines/vqvae.py``)
+differ only in their latent; all of them
+
+  * encode the robot-hidden initial views into per-view tokens (``obs_encoder.ObsEncoder``),
+  * reconstruct the dataset's task embedding z with the same transformer decoder
+    (``eps_decoder.EpsDecoder``),
+  * work in *standardised* z space: eps = (z - mean) / std with the training set's statistics
+    (kept as buffers, so a checkpoint carries them). The action predictor is fed eps in that
+    space, both the true one (Goal-RVT, pretraining) and the sampled one,
+  * answer ``sample(views, cluster, generator) -> SampleResult``.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import torch
+from torch import nn
+
+from actaim2.models.eps_decoder import EpsDecoder
+from actaim2.models.obs_encoder import ObsEncoder, ObsEncoderConfig
+
+SELECTOR_KINDS = ("cgmvae", "cvae", "vqvae")
+
+
+@dataclass(frozen=True)
+class SelectorConfig:
+    kind: str = "cgmvae"  # "cgmvae" (the paper) | "cvae" (ActAIM) | "vqvae" (VQVAE-RVT)
+    z_dim: int = 1920  # task embedding size: 5 cameras x 384 with the default autoencoder E
+    z_tokens: int = 5  # decoder query tokens, one per camera block of z
+    clusters: int = 8  # K (cgmvae mixture components, vqvae codebook size)
+    latent_dim: int = 64  # x (cgmvae), the Gaussian latent (cvae), code size (vqvae)
+    y_dim: int = 64  # cgmvae's y ~ N(0, I)
+    width: int = 256  # residual MLP width
+    blocks: int = 2  # residual blocks per MLP
+    decoder_layers: int = 4  # the paper's 4 self-attention layers
+    decoder_heads: int = 4
+    commitment: float = 0.25  # vqvae commitment weight (van den Oord et al.)
+    obs: ObsEncoderConfig = field(default_factory=ObsEncoderConfig)
+
+    def __post_init__(self) -> None:
+        if self.kind not in SELECTOR_KINDS:
+            raise ValueError(f"selector kind must be one of {SELECTOR_KINDS}, got {self.kind!r}")
+        if self.z_dim % self.z_tokens:
+            raise ValueError(f"z_dim {self.z_dim} is not a multiple of z_tokens {self.z_tokens}")
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "SelectorConfig":
+        d = dict(d)
+        obs = dict(d.pop("obs", {}))
+        _check_fields(ObsEncoderConfig, obs, "selector.obs")
+        _check_fields(cls, d, "selector")
+        if "widths" in obs:
+            obs["widths"] = tuple(obs["widths"])
+        return cls(**d, obs=ObsEncoderConfig(**obs))
+
+
+def _check_fields(cls, d: dict, where: str) -> None:
+    unknown = set(d) - {f.name for f in dataclasses.fields(cls)}
+    if unknown:
+        raise ValueError(f"unknown {where} fields {sorted(unknown)}")
+
+
+@dataclass
+class SampleResult:
+    eps: torch.Tensor  # (B, z_dim) standardised task embedding, the action predictor's input
+    cluster: torch.Tensor  # (B,) long; -1 for a selector without discrete modes (cvae)
+    cluster_probabilities: torch.Tensor  # (B, K) the distribution the cluster was drawn from; (B, 0) for cvae
+
+
+class ModeSelector(nn.Module):
+    """Base class: condition encoder, decoder, z standardisation. Subclasses add the latent."""
+
+    def __init__(self, config: SelectorConfig):
+        super().__init__()
+        self.config = config
+        self.obs_encoder = ObsEncoder(config.obs)
+        self.decoder = EpsDecoder(config.latent_dim, config.obs.token_dim, config.z_dim, config.z_tokens,
+                                  config.decoder_layers, config.decoder_heads)
+        self.register_buffer("z_mean", torch.zeros(config.z_dim))
+        self.register_buffer("z_std", torch.ones(config.z_dim))
+
+    @property
+    def condition_dim(self) -> int:
+        """Size of the flattened per-view tokens fed to the MLP heads."""
+        return self.config.obs.views * self.config.obs.token_dim
+
+    @torch.no_grad()
+    def fit_statistics(self, views: torch.Tensor, z: torch.Tensor) -> None:
+        """Input standardisation of the views and of z, from the training set (before training)."""
+        if z.shape[-1] != self.config.z_dim:
+            raise ValueError(f"z has {z.shape[-1]} dimensions, the selector expects {self.config.z_dim}")
+        self.obs_encoder.fit_input_statistics(views)
+        self.z_mean.copy_(z.float().mean(dim=0))
+        self.z_std.copy_(z.float().std(dim=0).clamp_min(1e-6) if len(z) > 1 else torch.ones_like(self.z_std))
+
+    def standardise(self, z: torch.Tensor) -> torch.Tensor:
+        """Raw task embedding z -> eps space."""
+        return (z.float() - self.z_mean) / self.z_std
+
+    def condition(self, views: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Per-view tokens (B, V, d) and their flattening (B, V * d)."""
+        tokens = self.obs_encoder(views)
+        return tokens, tokens.flatten(1)
+
+    def _cluster_argument(self, cluster: int | None, batch: int, device: torch.device) -> torch.Tensor | None:
+        if cluster is None:
+            return None
+        if not 0 <= int(cluster) < self.config.clusters:
+            raise ValueError(f"cluster must be in 0..{self.config.clusters - 1}, got {cluster}")
+        return torch.full((batch,), int(cluster), dtype=torch.long, device=device)
+
+    def draw_noise(self, batch: int, generator: torch.Generator | None = None,
+                   device: torch.device | str = "cpu") -> dict[str, torch.Tensor]:
+        """The training forward's random draws, explicit so a batch can be split reproducibly (DDP test)."""
+        raise NotImplementedError
+
+    def sample(self, views: torch.Tensor, cluster: int | None = None,
+               generator: torch.Generator | None = None) -> SampleResult:
+        raise NotImplementedError
+
+    def reconstruct(self, views: torch.Tensor, eps_true: torch.Tensor) -> torch.Tensor:
+        """Deterministic reconstruction of a known eps through the posterior means (validation)."""
+        raise NotImplementedError
+
+    def assign_clusters(self, views: torch.Tensor, eps_true: torch.Tensor) -> torch.Tensor:
+        """(B,) the cluster a known eps belongs to (-1 without discrete modes)."""
+        raise NotImplementedError

@@ -1,0 +1,108 @@
+"""Training configuration: dataclasses filled from one YAML file (train/configs/*.yaml).
+
+Unknown keys are errors (a typo must not silently fall back to a default). Sizes that depend on
+the data (the task-embedding size z_dim, the view resolution) are not configured: training
+reads them from the dataset and writes the resolved configuration into every checkpoint.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from actaim2.models.selector_base import SelectorConfig
+
+CONFIG_DIR = Path(__file__).parent / "configs"
+PHASES = ("selector", "predictor", "joint")
+
+
+@dataclass(frozen=True)
+class ElboWeights:
+    """Weights of the selector loss terms (paper: all 1; authors' code: 2 / 3 / 3 / 3)."""
+
+    reconstruction: float = 1.0
+    x_prior: float = 1.0
+    y_prior: float = 1.0
+    c_prior: float = 1.0
+
+
+@dataclass(frozen=True)
+class PhaseConfig:
+    """One training phase: AdamW, linear warm-up then cosine decay to ``final_lr_fraction`` of ``lr``."""
+
+    epochs: float = 10.0
+    batch_size: int = 8
+    lr: float = 3e-4
+    weight_decay: float = 0.01
+    warmup_fraction: float = 0.05
+    final_lr_fraction: float = 0.01
+    grad_clip: float = 1.0
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    seed: int = 0
+    phases: tuple[str, ...] = PHASES  # which phases run, in this order
+    selector: SelectorConfig = field(default_factory=SelectorConfig)  # z_dim is overwritten from the data
+    predictor: dict = field(default_factory=dict)  # PredictorConfig fields except embedding_dim / image_size
+    selector_phase: PhaseConfig = field(default_factory=PhaseConfig)
+    predictor_phase: PhaseConfig = field(default_factory=PhaseConfig)
+    joint_phase: PhaseConfig = field(default_factory=PhaseConfig)
+    elbo: ElboWeights = field(default_factory=ElboWeights)
+    joint_elbo_weight: float = 1.0  # L_total = L_action + w L_ELBO (paper: 1; authors' code: 0.6)
+    augment: bool = True  # RVT scene augmentation of the predictor's batches
+    validation_fraction: float = 0.1  # trajectories of the training split held out for curves
+    checkpoint_minutes: float = 10.0  # wall time between resumable checkpoints
+    log_every: int = 20  # steps between TensorBoard scalars / progress-bar updates
+    device: str = "auto"  # "auto" (CUDA when present) | "cpu" | "cuda"
+    bf16: bool = False  # autocast to bfloat16 on CUDA
+
+    def __post_init__(self) -> None:
+        bad = [p for p in self.phases if p not in PHASES]
+        if bad:
+            raise ValueError(f"unknown phases {bad}; choose from {PHASES}")
+
+    def phase(self, name: str) -> PhaseConfig:
+        return getattr(self, f"{name}_phase")
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "TrainConfig":
+        d = dict(d)
+        _check(cls, d, "train")
+        out: dict = {}
+        for key, value in d.items():
+            if key == "selector":
+                out[key] = SelectorConfig.from_dict(value)
+            elif key.endswith("_phase"):
+                _check(PhaseConfig, value, key)
+                out[key] = PhaseConfig(**value)
+            elif key == "elbo":
+                _check(ElboWeights, value, key)
+                out[key] = ElboWeights(**value)
+            elif key == "phases":
+                out[key] = tuple(value)
+            else:
+                out[key] = value
+        return cls(**out)
+
+
+def _check(cls, d: dict, where: str) -> None:
+    if not isinstance(d, dict):
+        raise ValueError(f"{where} must be a mapping, got {type(d).__name__}")
+    unknown = set(d) - {f.name for f in dataclasses.fields(cls)}
+    if unknown:
+        raise ValueError(f"unknown {where} keys {sorted(unknown)}")
+
+
+def load_config(path: str | Path) -> TrainConfig:
+    """A YAML file, or the name of a bundled one ("cpu_default", "gpu_rvt")."""
+    p = Path(path)
+    if not p.exists() and (CONFIG_DIR / f"{path}.yaml").exists():
+        p = CONFIG_DIR / f"{path}.yaml"
+    with open(p) as f:
+        return TrainConfig.from_dict(yaml.safe_load(f) or {})

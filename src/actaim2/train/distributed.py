@@ -1,0 +1,72 @@
+"""Multi-process training through torchrun: DDP with gloo on CPU, NCCL on CUDA.
+
+``torchrun --nproc-per-node N -m actaim2.cli train ...`` sets RANK / WORLD_SIZE / LOCAL_RANK;
+a plain run is world size 1 and touches no process group. Every rank draws the same global
+batch (the batch RNG is seeded identically) and takes its own contiguous slice of it, so N
+ranks on B / N samples each average to the gradient of the full batch of B (the losses are
+batch means; tests/train/test_ddp.py checks it with 2 gloo ranks). Multi-GPU runs are untested
+here (no GPU on the development machines); one CUDA rank is checked by scripts/gpu_check.py.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+import torch.distributed as dist
+from torch.nn.parallel import DistributedDataParallel
+
+
+@dataclass(frozen=True)
+class DistContext:
+    rank: int
+    world_size: int
+    local_rank: int
+    device: torch.device
+
+    @property
+    def is_main(self) -> bool:
+        return self.rank == 0
+
+    @property
+    def distributed(self) -> bool:
+        return self.world_size > 1
+
+
+def choose_device(preference: str, local_rank: int = 0) -> torch.device:
+    """"auto": CUDA when present, else CPU; "cpu" / "cuda" as asked (cuda without a GPU is an error)."""
+    if preference == "cpu" or (preference == "auto" and not torch.cuda.is_available()):
+        return torch.device("cpu")
+    if not torch.cuda.is_available():
+        raise RuntimeError("device 'cuda' requested but torch sees no CUDA device")
+    return torch.device("cuda", local_rank)
+
+
+def init_distributed(preference: str = "auto") -> DistContext:
+    """Join torchrun's process group when WORLD_SIZE > 1 (backend by device); a single process otherwise."""
+    world = int(os.environ.get("WORLD_SIZE", "1"))
+    rank, local = int(os.environ.get("RANK", "0")), int(os.environ.get("LOCAL_RANK", "0"))
+    device = choose_device(preference, local)
+    if world > 1 and not dist.is_initialized():
+        if device.type == "cuda":
+            torch.cuda.set_device(device)
+        dist.init_process_group("nccl" if device.type == "cuda" else "gloo", rank=rank, world_size=world)
+    return DistContext(rank, world, local, device)
+
+
+def wrap(module: torch.nn.Module, ctx: DistContext) -> torch.nn.Module:
+    """DDP around ``module`` when distributed (gradients averaged over ranks), the module itself otherwise."""
+    if not ctx.distributed:
+        return module
+    return DistributedDataParallel(module, device_ids=[ctx.device.index] if ctx.device.type == "cuda" else None)
+
+
+def rank_slice(rows: np.ndarray, ctx: DistContext) -> np.ndarray:
+    """This rank's contiguous share of a global batch (sizes differ by at most one)."""
+    return np.array_split(rows, ctx.world_size)[ctx.rank]
+
+
+def shutdown() -> None:
+    if dist.is_initialized():
+        dist.destroy_process_group()

@@ -1,0 +1,323 @@
+"""The training procedure of the paper: pretrain the selector, pretrain the predictor, train jointly.
+
+Phases (``TrainConfig.phases``, in order):
+  selector   the mode selector alone on (O_init, z): its loss (train/elbo.py).
+  predictor  the action predictor alone on keyframes (O_i, a_i) fed the trajectory's *true*
+             standardised z as eps. The result is the Goal-RVT baseline.
+  joint      both: L_action(predictor(O_i, sg[eps_hat])) + w L_ELBO, eps_hat the selector's
+             reconstruction of the trajectory's z; the stop-gradient keeps the action loss
+             out of the selector (paper, "Training Procedure").
+Baseline selectors (cvae, vqvae) run "selector" then "joint" from a Goal-RVT predictor
+(``init_from``), so they reuse its pretraining as the issue asks.
+
+Optimiser: AdamW, linear warm-up then cosine decay per phase, gradient clipping. Every
+``checkpoint_minutes`` and at the end of each phase a resumable checkpoint ``<out>/train_state``
+is written (weights, optimiser moments, RNG state, phase and step); ``resume=True`` continues
+from it bit-for-bit in the data order. The final models go to ``<out>/policy`` (weights only).
+Rank 0 shows progress bars, writes TensorBoard scalars (``<out>/tensorboard``) and
+``<out>/history.jsonl`` (per-epoch training and validation losses, for curves).
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+from contextlib import nullcontext
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from actaim2.models.predictor import ActionPredictor, PredictorConfig, proprio_features
+from actaim2.models.registry import build_selector
+from actaim2.models.selector_base import ModeSelector
+from actaim2.models.augment import augment
+from actaim2.models.view_geometry import CubePlacement
+from actaim2.train import checkpoint
+from actaim2.train.action_loss import action_loss, action_targets
+from actaim2.train.config import TrainConfig
+from actaim2.train.data import TrainingData
+from actaim2.train.distributed import DistContext, rank_slice, wrap
+from actaim2.train.elbo import selector_loss
+
+STATE = "train_state"
+POLICY = "policy"
+
+
+def learning_rate(step: int, total: int, base: float, warmup_fraction: float, final_fraction: float) -> float:
+    """Linear warm-up over ``warmup_fraction`` of the steps, then cosine decay to ``final_fraction * base``."""
+    warmup = max(1, int(round(warmup_fraction * total)))
+    if step < warmup:
+        return base * (step + 1) / warmup
+    progress = min(1.0, (step - warmup) / max(1, total - warmup))
+    return base * (final_fraction + (1.0 - final_fraction) * 0.5 * (1.0 + math.cos(math.pi * progress)))
+
+
+@dataclass
+class PhaseResult:
+    steps: int
+    seconds: float
+    last_metrics: dict = field(default_factory=dict)
+
+
+class Trainer:
+    """Owns the models, the data and the bookkeeping of one training run (one process of it under DDP)."""
+
+    def __init__(self, config: TrainConfig, train: TrainingData, val: TrainingData | None, placement: CubePlacement,
+                 perception: dict, dataset_digest: str, out: str | Path, ctx: DistContext,
+                 init_from: str | Path | None = None, show_progress: bool = True):
+        self.config, self.train, self.val, self.placement = config, train, val, placement
+        self.perception, self.dataset_digest, self.ctx = perception, dataset_digest, ctx
+        self.out, self.show = Path(out), show_progress and ctx.is_main
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.device = ctx.device
+        resolution = int(train.init_views.shape[-1])
+        z_dim = int(train.z.shape[1])
+        self.selector_config = type(config.selector).from_dict({**config.selector.to_dict(), "z_dim": z_dim})
+        self.predictor_config = PredictorConfig.from_json({**config.predictor, "embedding_dim": z_dim, "image_size": resolution})
+        torch.manual_seed(config.seed)
+        self.selector: ModeSelector = build_selector(self.selector_config).to(self.device)
+        self.predictor = ActionPredictor(self.predictor_config).to(self.device)
+        self.lineage: dict = {"init_from": None, "phases_done": []}
+        self.phase_index, self.step, self.optimizer_state = 0, 0, None
+        if init_from is not None:
+            self._init_from(init_from)
+        else:
+            rows = np.arange(min(len(train), 512))
+            views, z = train.selector_batch(rows, self.device)
+            self.selector.fit_statistics(views, z)
+        self.writer = self._tensorboard() if ctx.is_main else None
+
+    # ----------------------------------------------------------------- setup
+    def _init_from(self, stem: str | Path) -> None:
+        """Start from another run's policy (e.g. the Goal-RVT predictor and its z statistics)."""
+        policy = checkpoint.load_policy(stem, self.perception, self.device)
+        if policy.predictor is not None:
+            checkpoint.load_state(self.predictor, policy.predictor.state_dict(), "predictor")
+        if policy.selector is not None and type(policy.selector) is type(self.selector):
+            checkpoint.load_state(self.selector, policy.selector.state_dict(), "selector")
+        elif policy.selector is not None:  # another selector kind: keep its input statistics only
+            self.selector.z_mean.copy_(policy.selector.z_mean)
+            self.selector.z_std.copy_(policy.selector.z_std)
+            self.selector.obs_encoder.channel_mean.copy_(policy.selector.obs_encoder.channel_mean)
+            self.selector.obs_encoder.channel_std.copy_(policy.selector.obs_encoder.channel_std)
+        self.lineage["init_from"] = {"path": str(stem), "weights_sha256": policy.meta.get("weights_sha256"),
+                                     "phases_done": policy.meta.get("lineage", {}).get("phases_done")}
+
+    def _tensorboard(self):
+        try:
+            from torch.utils.tensorboard import SummaryWriter
+        except ImportError:  # tensorboard is optional outside the project venv (e.g. a bare GPU machine)
+            return None
+        return SummaryWriter(str(self.out / "tensorboard"))
+
+    # ----------------------------------------------------------- checkpoints
+    def _meta(self, phase: str | None = None) -> dict:
+        return {
+            "selector_config": self.selector_config.to_dict(),
+            "predictor_config": self.predictor_config.to_json(),
+            "perception": self.perception,
+            "dataset_digest": self.dataset_digest,
+            "train_config": self.config.to_dict(),
+            "lineage": self.lineage,
+            "training": {"phase_index": self.phase_index, "phase": phase, "step": self.step},
+        }
+
+    def save_state(self, optimizer: torch.optim.Optimizer | None, phase: str | None) -> None:
+        """Resumable checkpoint: weights, optimiser moments (as tensors), RNG state, position."""
+        if not self.ctx.is_main:
+            return
+        tensors = checkpoint.policy_tensors(self.selector, self.predictor)
+        meta = self._meta(phase)
+        if optimizer is not None:
+            state = optimizer.state_dict()
+            for pid, entries in state["state"].items():
+                for key, value in entries.items():
+                    tensors[f"optim.{pid}.{key}"] = torch.as_tensor(value)
+            meta["optimizer_groups"] = [{k: v for k, v in g.items() if k != "params"} for g in state["param_groups"]]
+        tensors["rng.torch"] = torch.get_rng_state()
+        checkpoint.save(self.out / STATE, tensors, meta)
+
+    def save_policy(self) -> Path:
+        return checkpoint.save(self.out / POLICY, checkpoint.policy_tensors(self.selector, self.predictor), self._meta())
+
+    def resume(self) -> bool:
+        """Load ``<out>/train_state`` if present; returns whether training resumes from it."""
+        if not checkpoint.paths(self.out / STATE)[1].exists():
+            return False
+        tensors, meta = checkpoint.read(self.out / STATE, self.perception)
+        if meta["dataset_digest"] != self.dataset_digest:
+            raise checkpoint.CheckpointError(f"{self.out / STATE} was trained on dataset {meta['dataset_digest']}, "
+                                             f"not on this one ({self.dataset_digest})")
+        checkpoint.load_state(self.selector, checkpoint.state_with_prefix(tensors, "selector."), "selector")
+        checkpoint.load_state(self.predictor, checkpoint.state_with_prefix(tensors, "predictor."), "predictor")
+        self.lineage = meta["lineage"]
+        self.phase_index, self.step = meta["training"]["phase_index"], meta["training"]["step"]
+        optim = checkpoint.state_with_prefix(tensors, "optim.")
+        if optim:
+            state: dict = {}
+            for key, value in optim.items():
+                pid, name = key.split(".", 1)
+                state.setdefault(int(pid), {})[name] = value
+            self.optimizer_state = {"state": state, "param_groups": meta["optimizer_groups"]}
+        torch.set_rng_state(tensors["rng.torch"])
+        return True
+
+    # -------------------------------------------------------------- training
+    def run(self) -> dict[str, PhaseResult]:
+        results = {}
+        for index, phase in enumerate(self.config.phases):
+            if index < self.phase_index:
+                continue
+            results[phase] = self._run_phase(phase)
+            self.phase_index, self.step, self.optimizer_state = index + 1, 0, None
+            self.lineage["phases_done"].append(phase)
+            self.save_state(None, None)
+        if self.ctx.is_main:
+            self.save_policy()
+        if self.writer is not None:
+            self.writer.close()
+        return results
+
+    def _items(self, phase: str, data: TrainingData) -> np.ndarray:
+        """Trajectory rows (selector phase) or (trajectory, phase) keyframe pairs (others)."""
+        return np.arange(len(data))[:, None] if phase == "selector" else data.keyframes()
+
+    def _modules(self, phase: str) -> list[torch.nn.Module]:
+        return {"selector": [self.selector], "predictor": [self.predictor], "joint": [self.selector, self.predictor]}[phase]
+
+    def _run_phase(self, phase: str) -> PhaseResult:
+        cfg = self.config.phase(phase)
+        items = self._items(phase, self.train)
+        if len(items) == 0:
+            raise ValueError(f"no training items for phase {phase}")
+        steps_per_epoch = max(1, math.ceil(len(items) / cfg.batch_size))
+        total = max(1, int(round(cfg.epochs * steps_per_epoch)))
+        params = [p for m in self._modules(phase) for p in m.parameters() if p.requires_grad]
+        optimizer = torch.optim.AdamW(params, lr=cfg.lr, weight_decay=cfg.weight_decay)
+        if self.optimizer_state is not None:
+            optimizer.load_state_dict(self.optimizer_state)
+        wrapped = {m: wrap(m, self.ctx) for m in self._modules(phase)}
+        last_save, t0, metrics = time.monotonic(), time.monotonic(), {}
+        bar = tqdm(total=total, initial=self.step, desc=f"{phase}", disable=not self.show)
+        for m in self._modules(phase):
+            m.train()
+        while self.step < total:
+            rng = np.random.default_rng([self.config.seed, self.config.phases.index(phase), self.step])
+            batch_items = items[rng.choice(len(items), size=min(cfg.batch_size, len(items)), replace=False)]
+            for group in optimizer.param_groups:
+                group["lr"] = learning_rate(self.step, total, cfg.lr, cfg.warmup_fraction, cfg.final_lr_fraction)
+            loss, metrics = self.loss(phase, self.train, rank_slice(batch_items, self.ctx), wrapped, rng)
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            metrics["grad_norm"] = float(torch.nn.utils.clip_grad_norm_(params, cfg.grad_clip))
+            optimizer.step()
+            self.step += 1
+            bar.update(1)
+            if self.step % self.config.log_every == 0 or self.step == total:
+                bar.set_postfix(loss=f"{metrics['loss']:.3f}")
+                self._log(f"{phase}/train", metrics, self.step)
+            if self.step % steps_per_epoch == 0 or self.step == total:
+                self._epoch_end(phase, metrics)
+            if time.monotonic() - last_save > 60.0 * self.config.checkpoint_minutes:
+                self.save_state(optimizer, phase)
+                last_save = time.monotonic()
+        bar.close()
+        return PhaseResult(total, time.monotonic() - t0, metrics)
+
+    def _autocast(self):
+        if self.config.bf16 and self.device.type == "cuda":
+            return torch.autocast("cuda", dtype=torch.bfloat16)
+        return nullcontext()
+
+    def loss(self, phase: str, data: TrainingData, items: np.ndarray, wrapped: dict | None = None,
+             rng: np.random.Generator | None = None) -> tuple[torch.Tensor, dict[str, float]]:
+        """Loss of one (per-rank) batch of ``items`` for ``phase``.
+
+        ``wrapped`` maps modules to their DDP wrappers; ``rng`` draws the scene augmentation
+        (none without it, as in validation).
+        """
+        wrapped = wrapped or {}
+        selector, predictor = wrapped.get(self.selector, self.selector), wrapped.get(self.predictor, self.predictor)
+        weights = self.config.elbo
+        with self._autocast():
+            if phase == "selector":
+                views, z = data.selector_batch(items[:, 0], self.device)
+                loss, _, metrics = selector_loss(selector, views, self.selector.standardise(z), weights)
+                return loss, {"loss": loss.item(), **metrics}
+            batch = data.keyframe_batch(items, self.device)
+            eps_true = self.selector.standardise(batch["z"])
+            metrics: dict[str, float] = {}
+            if phase == "joint":
+                elbo, eps_hat, sel_metrics = selector_loss(selector, batch["init_views"], eps_true, weights)
+                eps_in = eps_hat.detach()  # sg[eps]: the action loss must not reach the selector
+                metrics.update({f"selector_{k}": v for k, v in sel_metrics.items()})
+            else:
+                elbo, eps_in = None, eps_true
+            views, keypose = self.augment(batch["views"], batch["keypose"], rng)
+            views = views
+            out = predictor(views, eps_in, proprio_features(batch["gripper"], batch["phase"]))
+            act, parts = action_loss(out, action_targets(keypose, self.placement, views.shape[-1]))
+            loss = act if elbo is None else act + self.config.joint_elbo_weight * elbo
+            metrics.update({"loss": loss.item(), "action": act.item(), **{k: float(v) for k, v in parts.items()}})
+            return loss, metrics
+
+    def augment(self, views: torch.Tensor, keypose: torch.Tensor,
+                rng: np.random.Generator | None) -> tuple[torch.Tensor, torch.Tensor]:
+        """RVT's scene augmentation of rendered views and keyposes (models/augment.py), per sample."""
+        if not self.config.augment or rng is None:
+            return views, keypose
+        pairs = [augment(v, k, self.placement, rng) for v, k in zip(views.cpu().numpy(), keypose.cpu().numpy())]
+        return (torch.from_numpy(np.stack([v for v, _ in pairs]).astype(np.float32)).to(views.device),
+                torch.from_numpy(np.stack([k for _, k in pairs]).astype(np.float32)).to(keypose.device))
+
+    @torch.no_grad()
+    def validate(self, phase: str, limit: int = 256) -> dict[str, float] | None:
+        """Mean losses over (up to ``limit``) held-out items: eval mode, no augmentation, fixed noise.
+
+        The selector's draws use a forked RNG, so validating leaves the training RNG untouched
+        (a resumed run stays on the same random sequence). ``reconstruction_mse`` is the mean
+        squared error per dimension of eps through the posterior means.
+        """
+        if self.val is None or len(self.val) == 0:
+            return None
+        items = self._items(phase, self.val)
+        if len(items) == 0:
+            return None
+        items = items[np.random.default_rng(self.config.seed).permutation(len(items))[:limit]]
+        modules = self._modules(phase)
+        for m in modules:
+            m.eval()
+        sums: dict[str, float] = {}
+        with torch.random.fork_rng(devices=[self.device] if self.device.type == "cuda" else []):
+            torch.manual_seed(self.config.seed)
+            for chunk in np.array_split(items, max(1, math.ceil(len(items) / self.config.phase(phase).batch_size))):
+                _, metrics = self.loss(phase, self.val, chunk)
+                if phase != "predictor":
+                    views, z = self.val.selector_batch(chunk[:, 0], self.device)
+                    eps = self.selector.standardise(z)
+                    rec = self.selector.reconstruct(views, eps)
+                    metrics["reconstruction_mse"] = float(((rec - eps) ** 2).mean())
+                for k, v in metrics.items():
+                    sums[k] = sums.get(k, 0.0) + v * len(chunk)
+        for m in modules:
+            m.train()
+        return {k: v / len(items) for k, v in sums.items()}
+
+    def _epoch_end(self, phase: str, train_metrics: dict) -> None:
+        if not self.ctx.is_main:
+            return
+        val = self.validate(phase)
+        record = {"phase": phase, "step": self.step, "train": train_metrics, "val": val}
+        with open(self.out / "history.jsonl", "a") as f:
+            f.write(json.dumps(record) + "\n")
+        if val is not None:
+            self._log(f"{phase}/val", val, self.step)
+
+    def _log(self, tag: str, metrics: dict, step: int) -> None:
+        if self.writer is None:
+            return
+        for k, v in metrics.items():
+            self.writer.add_scalar(f"{tag}/{k}", v, step)
