@@ -39,6 +39,7 @@ PARAMETERS = {
     "loop": (False, "play again from the start offset when the bag ends, until stopped"),
     "clock_rate": (0.0, "Hz: publish the bag time on /clock at this rate (for use_sim_time nodes); 0 = no /clock"),
     "start_delay": (0.5, "s between creating the publishers and the first message (lets subscribers match)"),
+    "wait_for_subscribers": ([""], "published topics that must each have a subscriber before playback starts; [\"\"] = none"),
     "summary_file": ("", "write the final summary as JSON to this file (scripts, benchmarks); empty = none"),
 }
 
@@ -65,7 +66,7 @@ class BagPlayer(Node):
         selected = {t for t in p["topics"] if t}
         for topic in sorted(selected - set(source.topics)):
             self._report(f"topic {topic}: not in the bag")
-        publishers = {}
+        publishers, by_output = {}, {}
         for topic in source.playable():
             if selected and topic.name not in selected:
                 continue
@@ -77,10 +78,16 @@ class BagPlayer(Node):
             choice = replay_choice(topic.offered_qos, topic.count)
             publisher = self.create_publisher(msg_class, remap.get(topic.name, topic.name), rclpy_qos(choice))
             publishers[topic.name] = publisher.publish
+            by_output[publisher.topic_name] = publisher
         clock = None
         if options.clock_period_ns:
             clock_pub = self.create_publisher(Clock, "/clock", 10)
             clock = lambda ns: clock_pub.publish(Clock(clock=Time(sec=ns // 10**9, nanosec=ns % 10**9)))  # noqa: E731
+            by_output[clock_pub.topic_name] = clock_pub
+        awaited = [t for t in p["wait_for_subscribers"] if t]
+        if missing := [t for t in awaited if t not in by_output]:
+            raise ValueError(f"wait_for_subscribers names topics this bag does not play: {missing} (played: {sorted(by_output)})")
+        self._awaited = [by_output[t] for t in awaited]
         self._player = Player(source, options, publishers, clock, stop)
         self._thread = threading.Thread(target=self._play, args=(float(p["start_delay"]),), name="bag_player", daemon=True)
         self._thread.start()
@@ -93,6 +100,10 @@ class BagPlayer(Node):
         self.get_logger().warning(text)
 
     def _play(self, delay: float) -> None:
+        if self._awaited:
+            self.get_logger().info(f"waiting for subscribers on {[p.topic_name for p in self._awaited]}")
+        while not self._stop.is_set() and not all(p.get_subscription_count() for p in self._awaited):
+            self._stop.wait(0.05)
         if not self._stop.wait(delay):
             self._player.run()
         self.done.set()

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 from rosbags.interfaces import Qos, QosDurability, QosReliability
 
-LATCHED_DEPTH_MAX = 1000
+LATCHED_DEPTH_MAX = 100  # like tf2's /tf_static listener; bounds the memory of a latched high-rate topic
 REPLAY_DEPTH = 10  # volatile topics: the publisher's queue depth while playing
 
 
