@@ -7,8 +7,9 @@ the proprioception (gripper closed, phase one-hot: :func:`proprio_features`).
 Network, as RVT's MVT:
   1. Two pixel-location channels (column, row in [-1, 1]) are appended to every view; RVT's
      renderer does not draw them either, the network adds them.
-  2. Patches of ``patch`` x ``patch`` px become tokens (a strided convolution = a linear map per
-     patch) plus a learned position embedding per view and patch.
+  2. Patches of ``patch`` x ``patch`` px become tokens by one linear map (what RVT's strided
+     convolution computes; as a matrix product its backward pass ran 5x faster here) plus a
+     learned position embedding per view and patch.
   3. eps and the proprioception, through a small MLP, are *added to every token*: each token
      knows the mode and the phase from the first layer on.
   4. ``layers_within`` blocks attend within each view, then ``layers_across`` blocks over the
@@ -117,7 +118,7 @@ class ActionPredictor(nn.Module):
         c = self.config = config
         self.grid = c.image_size // c.patch
         tokens_per_view = self.grid * self.grid
-        self.patch_embed = nn.Conv2d(c.in_channels + PIXEL_CHANNELS, c.width, c.patch, stride=c.patch)
+        self.patch_embed = nn.Linear((c.in_channels + PIXEL_CHANNELS) * c.patch * c.patch, c.width)
         self.position = nn.Parameter(torch.randn(1, c.views, tokens_per_view, c.width) * 0.02)
         self.condition = nn.Sequential(
             nn.Linear(c.embedding_dim + c.proprio_dim, c.width), nn.GELU(), nn.Linear(c.width, c.width)
@@ -143,7 +144,9 @@ class ActionPredictor(nn.Module):
         if (v, h, w) != (c.views, c.image_size, c.image_size):
             raise ValueError(f"views of shape {tuple(views.shape)}, expected (B, {c.views}, C, {c.image_size}, {c.image_size})")
         x = torch.cat([views.reshape(b * v, -1, h, w), self.pixel_location.expand(b * v, -1, -1, -1)], dim=1)
-        tokens = self.patch_embed(x).flatten(2).transpose(1, 2).reshape(b, v, -1, c.width)  # (B, V, N, D)
+        g, p = self.grid, c.patch
+        patches = x.reshape(b, v, -1, g, p, g, p).permute(0, 1, 3, 5, 2, 4, 6).reshape(b, v, g * g, -1)
+        tokens = self.patch_embed(patches)  # (B, V, N, D)
         cond = self.condition(torch.cat([eps, proprio], dim=1))  # (B, D)
         tokens = tokens + self.position + cond[:, None, None, :]
         n = tokens.shape[2]
