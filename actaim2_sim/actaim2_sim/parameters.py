@@ -51,8 +51,10 @@ DEFAULTS: dict[str, tuple[object, str]] = {
     "camera_width": (0, "image width, 0 = rig default (ring5 320; azure_kinect 320 binned or 640 unbinned)"),
     "camera_height": (0, "image height, 0 = rig default (ring5 240; azure_kinect 288 binned or 576 unbinned)"),
     "camera_rate": (5.0, "cloud publishing rate in sim-time Hz (0 = no clouds)"),
-    "sensor_noise": ("none", f"sensor realism preset: {' | '.join(SENSOR_NOISE_PRESETS)} (tof: ToF depth noise, "
-                             "dropouts, extrinsic jitter redrawn at every reset)"),
+    "sensor_noise": ("rig", f"sensor realism preset: {' | '.join(SENSOR_NOISE_PRESETS)} (rig: azure_kinect for the "
+                            "azure_kinect rig, none for ring5; azure_kinect: the documented sensor - range noise, "
+                            "flying pixels, invalid grazing/dark/specular returns, 75x65 deg NFOV, colour camera "
+                            "registration; tof: generic ToF noise; extrinsic jitter redrawn at every reset)"),
     "physics_rate": (240.0, "physics steps per simulated second"),
     "real_time_factor": (1.0, "sim seconds per wall second; 0 = as fast as possible"),
     "tick_period": (0.01, "wall seconds between loop ticks (each tick steps physics up to the target sim time)"),

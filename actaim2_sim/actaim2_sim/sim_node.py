@@ -121,7 +121,7 @@ class SimNode(Node):
             cameras=p.rig,
             render_path=p.render_path,
             camera_size=(p.camera_width, p.camera_height),
-            noise=SensorNoise.preset(p.sensor_noise),
+            noise=SensorNoise.preset(p.sensor_noise, p.rig),
         )
         self.get_logger().info(
             f"render path: {self.env.render_path} ({p.rig} rig, {len(self.env.rig.cameras)} camera(s)); "

@@ -42,7 +42,8 @@ def ring5_node(start_node):
 
 @pytest.fixture(scope="module")
 def kinect_node(tmp_path_factory):
-    params = dict(rig="azure_kinect", render_path="raycast", real_time_factor=0.0, camera_rate=2.0, **SCENE)
+    # ideal cameras: the floor check below is exact (the rig's default realism is tested in test_kinect_realism)
+    params = dict(rig="azure_kinect", render_path="raycast", sensor_noise="none", real_time_factor=0.0, camera_rate=2.0, **SCENE)
     node = NodeProcess("actaim2_sim", "sim_node", params, [], tmp_path_factory.mktemp("kinect"))
     yield node
     node.stop()

@@ -6,7 +6,8 @@ Two rigs:
   * ``azure_kinect`` - one camera shaped like the real robot setup's Azure Kinect: NFOV depth
     intrinsics, topic ``/points2``, frames ``camera_base`` -> ``depth_camera_link`` exactly as
     the Azure Kinect ROS driver publishes them (depth_camera_link is an optical frame, tilted
-    6 degrees down from camera_base, 1.8 mm above it).
+    6 degrees down from camera_base, 1.8 mm above it), plus the device's separate colour
+    camera (``rgb_camera_link``), which the driver registers into the depth camera's pixels.
 
 Everything here is geometry: no SAPIEN, no rendering. A :class:`CameraSpec` carries the
 *nominal* pose (what /tf_static publishes); renderers may be given a perturbed pose
@@ -46,6 +47,12 @@ class CameraSpec:
     frame_id: str
     topic: str
     tf_chain: tuple[tuple[str, str, np.ndarray], ...]
+    # A separate colour camera rigidly attached to this one (the Azure Kinect's RGB camera), or
+    # None: colour then comes from this camera's own view, perfectly registered.
+    colour: "CameraSpec | None" = None
+    # The documented (horizontal, vertical) field of view in degrees that the device's
+    # undistorted cloud spans, when it differs from what fx, fy give (see :meth:`with_nominal_fov`).
+    nominal_fov_deg: tuple[float, float] | None = None
 
     @property
     def K(self) -> np.ndarray:
@@ -66,8 +73,32 @@ class CameraSpec:
         return rays
 
     def with_pose(self, T_world_optical: np.ndarray) -> "CameraSpec":
-        """The same camera rendered from another pose (frames and tf_chain stay nominal)."""
-        return replace(self, T_world_optical=np.asarray(T_world_optical, dtype=float))
+        """The same camera rendered from another pose (frames and tf_chain stay nominal); an
+        attached colour camera moves with it."""
+        T_world_optical = np.asarray(T_world_optical, dtype=float)
+        colour = None if self.colour is None else self.colour.with_pose(T_world_optical @ self.T_optical_colour)
+        return replace(self, T_world_optical=T_world_optical, colour=colour)
+
+    @property
+    def T_optical_colour(self) -> np.ndarray:
+        """Pose of the attached colour camera's optical frame in this camera's optical frame."""
+        if self.colour is None:
+            raise ValueError(f"camera '{self.name}' has no separate colour camera")
+        return np.linalg.inv(self.T_world_optical) @ self.colour.T_world_optical
+
+    def with_nominal_fov(self) -> "CameraSpec":
+        """The pinhole on the same pixel grid whose image spans ``nominal_fov_deg`` edge to edge.
+
+        A real lens bends the outer rays: the Azure Kinect's NFOV depth camera has fx ~ 504 px
+        at 640 px wide (64.8 degrees through a pinhole) yet sees 75 degrees. This documented
+        pinhole equivalent puts the outermost pixels on the outermost rays, so the cloud covers
+        what the device's (undistorted) cloud covers, with non-square pixels.
+        """
+        if self.nominal_fov_deg is None:
+            return self
+        hfov, vfov = np.deg2rad(self.nominal_fov_deg)
+        return replace(self, fx=0.5 * self.width / np.tan(hfov / 2.0), fy=0.5 * self.height / np.tan(vfov / 2.0),
+                       cx=self.width / 2.0, cy=self.height / 2.0)
 
 
 @dataclass(frozen=True)
@@ -181,12 +212,43 @@ T_CAMERA_BASE_DEPTH[:3, 3] = [0.0, 0.0, 0.0018]
 
 # Azure Kinect NFOV depth: a 640x576 crop of the 1 MP ToF sensor (2x2 binned: 320x288).
 # Pinhole intrinsics of a typical factory calibration (fx = fy ~ 504 px unbinned; each device
-# differs by a few pixels); the lens distortion is not simulated. Operating ranges are the
-# datasheet's: 0.5-3.86 m unbinned, 0.5-5.46 m binned.
+# differs by a few pixels): only the image centre, since the lens distortion is not rendered.
+# Azure Kinect DK hardware specification: NFOV 75 x 65 degrees; operating ranges 0.5-3.86 m
+# unbinned, 0.5-5.46 m binned (for 15-95% reflectivity at 850 nm). Sensor realism renders the
+# 75 x 65 degree pinhole equivalent instead (CameraSpec.with_nominal_fov).
+AZURE_KINECT_NFOV_DEG = (75.0, 65.0)
 AZURE_KINECT_NFOV = {
     "nfov_unbinned": dict(width=640, height=576, fx=504.0, fy=504.0, cx=320.0, cy=288.0, min_depth=0.5, max_depth=3.86),
     "nfov_binned": dict(width=320, height=288, fx=252.0, fy=252.0, cx=160.0, cy=144.0, min_depth=0.5, max_depth=5.46),
 }
+
+# The colour camera. Azure Kinect DK hardware specification: 90 x 59 degrees for the 16:9
+# modes (720p and up); rendered at 640x360, half of 720p, to keep CPU rendering affordable (the
+# field of view is what matters for registration). Its own lens distortion is not modelled.
+AZURE_KINECT_COLOUR_FOV_DEG = (90.0, 59.0)
+AZURE_KINECT_COLOUR_SIZE = (640, 360)
+# depth_camera_link -> rgb_camera_link, as the driver publishes it from the factory calibration:
+# the colour camera sits ~32 mm from the depth camera along the depth camera's x axis (Azure
+# Kinect DK hardware specification: depth-to-colour baseline ~32 mm; typical factory extrinsics
+# depth -> colour translate by about -32 mm in x), and the depth camera is tilted 6 degrees
+# down from it, so the colour camera looks along camera_base's x axis.
+AZURE_KINECT_BASELINE = 0.032
+T_CAMERA_BASE_COLOUR = np.eye(4)
+T_CAMERA_BASE_COLOUR[:3, :3] = _tf2_set_euler(-np.pi / 2, np.pi, np.pi / 2).as_matrix()
+T_CAMERA_BASE_COLOUR[:3, 3] = T_CAMERA_BASE_DEPTH[:3, 3] + T_CAMERA_BASE_DEPTH[:3, 0] * AZURE_KINECT_BASELINE
+T_DEPTH_COLOUR = np.linalg.inv(T_CAMERA_BASE_DEPTH) @ T_CAMERA_BASE_COLOUR
+
+
+def _azure_colour_camera(T_world_depth: np.ndarray, tf_chain: tuple) -> CameraSpec:
+    width, height = AZURE_KINECT_COLOUR_SIZE
+    hfov, vfov = np.deg2rad(AZURE_KINECT_COLOUR_FOV_DEG)
+    return CameraSpec(
+        name="azure_kinect_rgb", width=width, height=height,
+        fx=0.5 * width / np.tan(hfov / 2.0), fy=0.5 * height / np.tan(vfov / 2.0), cx=width / 2.0, cy=height / 2.0,
+        min_depth=0.05, max_depth=10.0,
+        T_world_optical=T_world_depth @ T_DEPTH_COLOUR, frame_id="rgb_camera_link", topic="",
+        tf_chain=tf_chain + (("depth_camera_link", "rgb_camera_link", T_DEPTH_COLOUR),),
+    )
 
 
 def azure_kinect(
@@ -213,13 +275,16 @@ def azure_kinect(
     eye = target + np.array([distance * np.cos(azimuth), distance * np.sin(azimuth), elevation])
     T_world_optical = look_at_optical(eye, target)
     T_world_base = T_world_optical @ np.linalg.inv(T_CAMERA_BASE_DEPTH)
+    tf_chain = (("world", "camera_base", T_world_base), ("camera_base", "depth_camera_link", T_CAMERA_BASE_DEPTH))
     return [
         CameraSpec(
             name="azure_kinect",
             T_world_optical=T_world_optical,
             frame_id="depth_camera_link",
             topic="/points2",
-            tf_chain=(("world", "camera_base", T_world_base), ("camera_base", "depth_camera_link", T_CAMERA_BASE_DEPTH)),
+            tf_chain=tf_chain,
+            colour=_azure_colour_camera(T_world_optical, tf_chain),
+            nominal_fov_deg=AZURE_KINECT_NFOV_DEG,
             **AZURE_KINECT_NFOV[mode],
         )
     ]

@@ -80,7 +80,8 @@ class SimEnv:
         """``cameras``: a rig name of :mod:`actaim2.sim.cameras` (``ring5``, ``azure_kinect``) or
         None for physics only. ``render_path``: ``auto``, ``sapien`` or ``raycast``
         (:mod:`actaim2.sim.render_path`); the scene gets a render system only for ``sapien``.
-        ``noise``: a :class:`actaim2.sim.sensor_noise.SensorNoise` (default: ideal cameras)."""
+        ``noise``: a :class:`actaim2.sim.sensor_noise.SensorNoise` (default: the rig's own,
+        ``SensorNoise.preset("rig", cameras)``: the documented sensor for azure_kinect, ideal ring5 cameras)."""
         self.spec = load_robot_spec(robot) if isinstance(robot, str) else robot
         self.cache_dir = cache_dir
         self.render_path = None
@@ -96,7 +97,8 @@ class SimEnv:
             from actaim2.sim.sensor_noise import SensorNoise
 
             specs = make_rig(cameras, WORKSPACE_CENTER, width=camera_size[0], height=camera_size[1])
-            self.rig = CameraRig(self.sim.scene, specs, self.render_path, noise if noise is not None else SensorNoise())
+            self.rig = CameraRig(self.sim.scene, specs, self.render_path,
+                                 noise if noise is not None else SensorNoise.preset("rig", cameras))
         self.info: ResetInfo | None = None
 
     # -- scene access (cameras, node) -------------------------------------------------------

@@ -131,6 +131,10 @@ class RaycastRenderer:
         colours.append(np.zeros(3, np.uint8))
         return rc, np.asarray(ids, dtype=np.int32), np.asarray(colours, dtype=np.uint8)
 
+    def specular_entities(self) -> frozenset[int]:
+        """None: collision geometry carries no render material."""
+        return frozenset()
+
     def render(self, hidden: set[int] = frozenset()) -> dict[str, CameraFrame]:
         """One frame per camera; entities whose per_scene_id is in ``hidden`` are left out."""
         rc, ids, colours = self._build_scene(set(hidden))

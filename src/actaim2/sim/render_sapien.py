@@ -19,6 +19,10 @@ from actaim2.sim.cameras import CameraFrame, CameraSpec
 from actaim2.sim.render_meshes import simplify_render_body
 
 SHADER = "minimal"
+# A render material counts as specular (a ToF camera's illumination is mirrored away) when it is
+# a metal with a glossy finish; an entity is specular when most of its visual triangles are.
+SPECULAR_METALLIC = 0.5
+SPECULAR_ROUGHNESS = 0.3
 _MM_TO_OPTICAL = (np.diag(T_OPENGL_OPTICAL)[:3] / 1000.0).astype(np.float32)
 
 
@@ -33,6 +37,7 @@ class SapienRenderer:
         self._cameras = list(cameras)
         self._components: dict[str, sapien.render.RenderCameraComponent] = {}
         self._seen: set[int] = set()  # entities whose visual meshes were already simplified
+        self._specular: set[int] = set()  # entities whose visual material is mostly specular
         for spec in self._cameras:
             near = min(0.01, 0.5 * spec.min_depth)
             fovy = 2.0 * np.arctan(0.5 * spec.height / spec.fy)
@@ -67,6 +72,8 @@ class SapienRenderer:
             if entity.per_scene_id not in self._seen:
                 self._seen.add(entity.per_scene_id)
                 simplify_render_body(entity)
+                if _is_specular(entity):
+                    self._specular.add(entity.per_scene_id)
         hidden_bodies = self._render_bodies(set(hidden))
         for body in hidden_bodies:
             body.visibility = 0.0
@@ -80,6 +87,10 @@ class SapienRenderer:
                 body.visibility = 1.0
         return frames
 
+    def specular_entities(self) -> frozenset[int]:
+        """per_scene_ids of the entities rendered so far whose material is specular."""
+        return frozenset(self._specular)
+
     def _read(self, spec: CameraSpec) -> CameraFrame:
         camera = self._components[spec.name]
         position = camera.get_picture("PositionSegmentation")
@@ -92,3 +103,20 @@ class SapienRenderer:
         rgb[~valid] = 0
         segmentation = np.where(valid, position[..., 3], 0).astype(np.int32)
         return CameraFrame(spec.name, xyz, rgb, segmentation)
+
+
+def _is_specular(entity: sapien.Entity) -> bool:
+    """Most of the entity's visual triangles (a primitive counts as 12) carry a glossy metal material."""
+    body = entity.find_component_by_type(sapien.render.RenderBodyComponent)
+    if body is None:
+        return False
+    specular = total = 0
+    for shape in body.render_shapes:
+        parts = shape.parts if isinstance(shape, sapien.render.RenderShapeTriangleMesh) else [shape]
+        for part in parts:
+            weight = len(part.triangles) if hasattr(part, "triangles") else 12
+            material = part.material
+            total += weight
+            if material.metallic >= SPECULAR_METALLIC and material.roughness <= SPECULAR_ROUGHNESS:
+                specular += weight
+    return total > 0 and specular > total / 2
