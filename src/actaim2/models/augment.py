@@ -19,6 +19,7 @@ Cost: ``actaim2 bench models`` reports the time per sample (``augment`` row).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -37,6 +38,12 @@ class AugmentConfig:
     max_translation: float = 0.05  # m, per axis
     max_yaw_deg: float = 45.0  # RVT's yaw range
     tries: int = 10  # draws before giving up on keeping the keypose inside the cube
+
+
+class Augmented(NamedTuple):
+    views: np.ndarray  # (V, C, R, R) re-rendered
+    keypose: np.ndarray  # (8,) moved with the scene
+    transform: np.ndarray  # 4x4 world transform applied (the identity when no draw kept the keypose inside)
 
 
 def sample_perturbation(rng: np.random.Generator, config: AugmentConfig, placement: CubePlacement) -> np.ndarray:
@@ -71,8 +78,8 @@ def augment(
     placement: CubePlacement,
     rng: np.random.Generator,
     config: AugmentConfig = AugmentConfig(),
-) -> tuple[np.ndarray, np.ndarray]:
-    """Perturbed (views, keypose) of one sample; views (V, C, R, R) as rendered, keypose (8,) world."""
+) -> Augmented:
+    """One sample perturbed: views (V, C, R, R) as rendered, keypose (8,) in world coordinates."""
     position = np.asarray(keypose[:3], dtype=np.float64)
     center = np.asarray(placement.center, dtype=np.float64)
     for _ in range(config.tries):
@@ -80,7 +87,8 @@ def augment(
         if np.abs(T[:3, :3] @ position + T[:3, 3] - center).max() <= placement.half_extent:
             break
     else:
-        return views, np.asarray(keypose, dtype=np.float64)
+        return Augmented(views, np.asarray(keypose, dtype=np.float64), np.eye(4))
     xyz, rgb = views_cloud(views, placement)
     moved = (xyz @ T[:3, :3].T + T[:3, 3]).astype(np.float32)
-    return render_views(moved, rgb, placement.center, placement.half_extent, views.shape[-1]), transform_keypose(T, keypose)
+    rendered = render_views(moved, rgb, placement.center, placement.half_extent, views.shape[-1])
+    return Augmented(rendered, transform_keypose(T, keypose), T)
