@@ -19,7 +19,6 @@ Cost: ``actaim2 bench models`` reports the time per sample (``augment`` row).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -38,12 +37,6 @@ class AugmentConfig:
     max_translation: float = 0.05  # m, per axis
     max_yaw_deg: float = 45.0  # RVT's yaw range
     tries: int = 10  # draws before giving up on keeping the keypose inside the cube
-
-
-class Augmented(NamedTuple):
-    views: np.ndarray  # (V, C, R, R) re-rendered
-    keypose: np.ndarray  # (8,) moved with the scene
-    transform: np.ndarray  # 4x4 world transform applied (the identity when no draw kept the keypose inside)
 
 
 def sample_perturbation(rng: np.random.Generator, config: AugmentConfig, placement: CubePlacement) -> np.ndarray:
@@ -78,8 +71,12 @@ def augment(
     placement: CubePlacement,
     rng: np.random.Generator,
     config: AugmentConfig = AugmentConfig(),
-) -> Augmented:
-    """One sample perturbed: views (V, C, R, R) as rendered, keypose (8,) in world coordinates."""
+) -> tuple[np.ndarray, np.ndarray]:
+    """One sample perturbed: (views (V, C, R, R) as rendered, keypose (8,) in world coordinates).
+
+    The transform is the first draw of :func:`sample_perturbation` from ``rng`` that keeps the
+    keypose inside the cube.
+    """
     position = np.asarray(keypose[:3], dtype=np.float64)
     center = np.asarray(placement.center, dtype=np.float64)
     for _ in range(config.tries):
@@ -87,8 +84,8 @@ def augment(
         if np.abs(T[:3, :3] @ position + T[:3, 3] - center).max() <= placement.half_extent:
             break
     else:
-        return Augmented(views, np.asarray(keypose, dtype=np.float64), np.eye(4))
+        return views, np.asarray(keypose, dtype=np.float64)
     xyz, rgb = views_cloud(views, placement)
     moved = (xyz @ T[:3, :3].T + T[:3, 3]).astype(np.float32)
     rendered = render_views(moved, rgb, placement.center, placement.half_extent, views.shape[-1])
-    return Augmented(rendered, transform_keypose(T, keypose), T)
+    return rendered, transform_keypose(T, keypose)
