@@ -14,6 +14,7 @@ import sys
 COMMANDS: dict[tuple[str, ...], tuple[str, str]] = {
     ("bench", "sim"): ("actaim2.bench.sim", "physics steps/s, render ms per camera, ring5 observation"),
     ("bench", "perception"): ("actaim2.bench.perception", "clouds-in to views-out latency, in-process and through the node"),
+    ("bench", "bags"): ("actaim2.bench.bags", "bag_recorder MB/s, CPU and loss under a ring5 replay; bag_player timing error"),
     ("bench", "control"): ("actaim2.bench.control", "IK success and latency, Ruckig time, straight-line deviation"),
     ("expert",): ("actaim2.rollout.expert_eval", "scripted expert success per category (proves the objects are manipulable)"),
     ("render",): ("actaim2.perception.render_cli", "render a bag or saved cloud into orthographic PNG views"),

@@ -100,7 +100,8 @@ class Recorder:
         self._cond = threading.Condition()
         self._counts: dict[str, TopicCounts] = {}
         self._topics: dict[str, tuple[TopicSpec, bool]] = {}  # name -> (spec, latched); writer thread
-        self._latched: dict[str, OrderedDict[bytes, None]] = {}
+        self._latched_topics: set[str] = set()  # as the producers see it
+        self._latched: dict[str, OrderedDict[bytes, None]] = {}  # writer thread: the messages kept
         self._bag_open = False  # as the producers see it (after the queued start/end)
         self._writer: BagWriter | None = None
         self._ids: dict[str, int] = {}
@@ -115,6 +116,8 @@ class Recorder:
     def add_topic(self, spec: TopicSpec, reliable: bool, latched: bool) -> None:
         with self._cond:
             self._counts.setdefault(spec.name, TopicCounts(reliable=reliable))
+            if latched:
+                self._latched_topics.add(spec.name)
             self._push(("topic", spec, latched))
 
     def start_bag(self, name: str, timestamp: int) -> None:
@@ -135,7 +138,7 @@ class Recorder:
             counts.received += 1
             if self.error is not None:
                 return False
-            if not self._bag_open and topic not in self._latched:
+            if not self._bag_open and topic not in self._latched_topics:
                 counts.outside_bag += 1
                 return False
             if self._queued_bytes + len(data) > self._limit:
