@@ -17,7 +17,11 @@ from dataclasses import dataclass
 from rosbags.interfaces import Qos, QosDurability, QosReliability
 
 LATCHED_DEPTH_MAX = 100  # like tf2's /tf_static listener; bounds the memory of a latched high-rate topic
-REPLAY_DEPTH = 10  # volatile topics: the publisher's queue depth while playing
+# Volatile topics: the publisher's history while playing. A reliable KEEP_LAST writer drops its
+# oldest unacknowledged sample when the history is full, so a reliable topic gets 100 (1 s of
+# 100 Hz joint states: a subscriber stalled by a busy machine still gets every message);
+# best-effort topics (clouds) keep few, as a sensor driver does.
+REPLAY_DEPTH_RELIABLE, REPLAY_DEPTH_BEST_EFFORT = 100, 10
 
 
 @dataclass(frozen=True)
@@ -38,5 +42,8 @@ def replay_choice(offered: list[Qos], message_count: int) -> QosChoice:
     """The publisher for a recorded topic. Without recorded QoS: reliable, volatile (ROS default)."""
     reliable = not offered or all(q.reliability != QosReliability.BEST_EFFORT for q in offered)
     latched = bool(offered) and all(q.durability == QosDurability.TRANSIENT_LOCAL for q in offered)
-    depth = min(max(message_count, 1), LATCHED_DEPTH_MAX) if latched else REPLAY_DEPTH
+    if latched:
+        depth = min(max(message_count, 1), LATCHED_DEPTH_MAX)
+    else:
+        depth = REPLAY_DEPTH_RELIABLE if reliable else REPLAY_DEPTH_BEST_EFFORT
     return QosChoice(reliable, latched, depth)

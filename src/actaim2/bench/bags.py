@@ -8,9 +8,10 @@ played in a loop by ``bag_player`` in one process and recorded by ``bag_recorder
 (``ros2 run``, a private ROS_DOMAIN_ID, loopback only), with the recorder's default MCAP lz4.
 
 Reported per playback rate factor (1.0 = the target rates): what the player published and the
-recorder recorded per topic (loss), the recorder's MB/s and messages/s over the replay window,
-its CPU use (/proc, user + system, all threads; 100% = one core), the bag's size on disk, and
-the player's timing error (publish time minus due time) p50/p99. When the targets (zero loss
+recorder recorded per topic (loss); the recorder's MB/s and messages/s over the span from the
+first to the last recorded message; its CPU use during the replay (/proc, user + system, all
+threads; 100% = one core); the bag's size on disk; the player's timing error (publish time
+minus due time) p50/p99. When the targets (zero loss
 on reliable topics, <= 1% on best-effort clouds) fail at a rate, the next lower rate is tried,
 so the table ends at the rate the recorder holds.
 
@@ -31,6 +32,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 CLOUD_RATE, JOINT_RATE = 10.0, 100.0  # Hz at rate factor 1
 T0 = 1_700_000_000 * 10**9
@@ -162,8 +164,9 @@ def run_rate(source: Path, topics: list[str], rate: float, args: argparse.Namesp
     played = json.loads((workdir / f"player_{rate:g}.json").read_text())
     recorded = json.loads((workdir / f"recorder_{rate:g}.json").read_text())
     size = sum(p.stat().st_size for p in out.iterdir())
+    info = yaml.safe_load((out / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     return {"rate": rate, "played": played, "recorded": recorded, "cpu_pct": 100.0 * (cpu1 - cpu0) / (wall1 - wall0),
-            "bag_bytes": size}
+            "bag_bytes": size, "span_s": info["duration"]["nanoseconds"] / 1e9}
 
 
 def _verdict(result: dict) -> tuple[bool, list[str]]:
@@ -206,7 +209,7 @@ def main(args: argparse.Namespace) -> int:
         print("\n| rate | recorder MB/s | msgs/s | recorder CPU | bag on disk | player timing error p50 / p99 | targets |")
         print("|---|---|---|---|---|---|---|")
         for result, ok, _ in results:
-            seconds = result["played"]["seconds"]
+            seconds = result["span_s"]  # first to last recorded message (receive times)
             recorded = result["recorded"]["topics"]
             mb = sum(c["bytes"] for c in recorded.values()) / 1e6
             msgs = sum(c["recorded"] for c in recorded.values())
