@@ -33,6 +33,7 @@ from actaim2.perception.calibration import load_calibration
 from actaim2.perception.cloud_codec import CloudFormatError
 from actaim2.perception.config import load_perception_config
 from actaim2.perception.fusion import CameraCloud
+from actaim2.perception.memory import keep_freed_memory
 from actaim2.perception.joint_history import (
     DEFAULT_HISTORY,
     DEFAULT_MAX_EXTRAPOLATION,
@@ -281,6 +282,7 @@ class FusionNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
+    keep_freed_memory()  # per-set buffers stay in the heap instead of being faulted in again (2-4 ms a set)
     return run(FusionNode, "fusion_node", args)
 
 

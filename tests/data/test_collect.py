@@ -17,12 +17,11 @@ from actaim2.data.collect import CollectConfig, TrajectoryCollector, collect, st
 from actaim2.data.storage import MAX_TRAJECTORY_BYTES, DatasetReader, decode_trajectory
 from actaim2.data.torch_dataset import KeyframeDataset, ModeDataset
 from actaim2.data.trajectory import OBSERVATION_NAMES
-from actaim2.perception.fusion import FusionConfig
+from actaim2.perception.config import load_perception_config
 from actaim2.perception.ortho_views import CHANNELS, VIEWS
-from actaim2.perception.pipeline import Perception, PerceptionConfig
+from actaim2.perception.pipeline import Perception
 from actaim2.perception.self_filter import RobotSelfFilter
 from actaim2.robots import load_robot_spec
-from actaim2.sim.env import WORKSPACE_CENTER
 
 OBJECT = ("storage_furniture", 0)
 
@@ -50,7 +49,7 @@ def test_tiny_collection_end_to_end(tmp_path, capsys):
     assert item["phase"] == 1 and item["rgb"].shape == (5, 3, 240, 320) and item["keypose"].shape == (8,)
     assert item["z"].ndim == 1 and item["gripper_closed"] is False
     assert ModeDataset(out, success=None)[0]["depth"].shape == (5, 240, 320)
-    perception = Perception(PerceptionConfig(FusionConfig(center=tuple(WORKSPACE_CENTER), half_extent=0.6)),
+    perception = Perception(load_perception_config("ring5"),
                             RobotSelfFilter(load_robot_spec("panda")))
     views = KeyframeDataset(out, success=None, perception=perception)[2]["views"]  # O_2: the hand at p1
     assert views.shape == (len(VIEWS), len(CHANNELS), 128, 128) and views[:, CHANNELS.index("occupancy")].sum() > 1000

@@ -27,7 +27,7 @@ def test_one_episode_through_the_node_graph(ros_node, start_node):
 
     start_node("actaim2_sim", "sim_node", {"render_path": "raycast", "camera_rate": 5.0, "real_time_factor": 0.0, **SCENE})
     cams = [f"/cameras/cam{k}/points" for k in range(5)]
-    start_node("actaim2_perception", "fusion_node", {"cloud_topics": cams, "use_sim_time": True, "workspace_center": [0.75, 0.0, 0.4],
+    start_node("actaim2_perception", "fusion_node", {"cloud_topics": cams, "use_sim_time": True, "perception_config": "ring5",
                                                      "remove_robot_fused": True})
     start_node("actaim2_control", "control_node", {})
     runner = start_node("actaim2_sim", "episode_runner", {"episodes": 1, **SCENE, "velocity_scaling": 1.0})

@@ -6,8 +6,14 @@ Scenes are ray cast (``actaim2.perception.synthetic``) with the simulator's came
 floor, a cabinet-sized box and the Panda at home, whose points the self-filter removes from the
 views, as in deployment.
 
-* in-process: PointCloud2 payload bytes -> decode -> fuse -> self-filter -> views, timed with
-  ``time.perf_counter`` around :meth:`Perception.process` plus decoding.
+* in-process: PointCloud2 payload bytes -> decode -> fuse -> self-filter -> views with the rig's
+  perception configuration (``actaim2/perception/configs/<rig>.yaml``, resolution overridden),
+  timed with ``time.perf_counter`` around :meth:`Perception.process` plus decoding. The same
+  path with the renderer as it was before splatting (one pixel per point, hard z-buffer) runs
+  interleaved with it, so both figures come from the same machine under the same load: that
+  renderer is read from git history (``ortho_views.py`` at :data:`BASELINE_COMMIT`), not kept
+  in the tree. Its views had other units, which does not change their cost. Like fusion_node,
+  the process keeps freed memory in its heap (``actaim2.perception.memory``) for both paths.
 * through the node: ``fusion_node`` and ``latency_probe`` run as separate processes (``ros2 run``,
   a private ROS_DOMAIN_ID, loopback only); latency is the probe's publish of a cloud set to its
   receipt of the /ortho_views message carrying that set's stamp. Each configuration runs at the
@@ -27,11 +33,16 @@ import signal
 import subprocess
 import tempfile
 import time
+import types
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
+BASELINE_COMMIT = "6bab265"  # the last ortho_views.py with one pixel per point (before splatting, issue 10)
+BASELINE_PATH = "src/actaim2/perception/ortho_views.py"
+SPLAT_COST_LIMIT = ("ring5", 128, 1.2)  # issue 10: ring5 -> 128 px p50 within 1.2x of the renderer before splatting
 TARGETS = {  # issue 4: in-process p50 (ms) for 128 px views, node output rate (Hz)
     ("ring5", "in-process", 128): ("p50 <= 30 ms", lambda p50, hz: p50 <= 30.0),
     ("ring5", "node"): ("10 Hz", lambda p50, hz: hz >= 10.0 * 0.95),
@@ -50,6 +61,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--threads", type=int, default=1, help="torch CPU threads (the node's default is 1)")
     parser.add_argument("--skip-node", action="store_true", help="in-process numbers only")
     parser.add_argument("--fastdds-profile", type=Path, help="Fast DDS XML profile for both processes (FASTRTPS_DEFAULT_PROFILES_FILE)")
+    parser.add_argument("--baseline", default=BASELINE_COMMIT,
+                        help="git revision whose ortho_views.render_views is timed beside today's ('' = skip)")
 
 
 @dataclass(frozen=True)
@@ -109,34 +122,58 @@ def save_scene(scene: Scene, path: Path) -> None:
     np.savez(path, **arrays)
 
 
-def in_process(scene: Scene, resolution: int, repeats: int) -> tuple[np.ndarray, np.ndarray]:
+def baseline_renderer(revision: str) -> Callable | None:
+    """``render_views`` of ortho_views.py at a git revision of this checkout, or None (reason printed)."""
+    repo = Path(__file__).resolve().parents[3]
+    shown = subprocess.run(["git", "-C", str(repo), "show", f"{revision}:{BASELINE_PATH}"], capture_output=True, text=True)
+    if shown.returncode != 0:
+        print(f"renderer before splatting not timed: git show {revision}:{BASELINE_PATH} failed: {shown.stderr.strip()}")
+        return None
+    module = types.ModuleType(f"ortho_views_{revision}")
+    exec(compile(shown.stdout, f"{revision}:{BASELINE_PATH}", "exec"), module.__dict__)  # noqa: S102 - our own history
+    return module.render_views
+
+
+def in_process(scene: Scene, config, repeats: int, baseline: Callable | None = None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Wall and CPU milliseconds per set: payload bytes -> views, robot removed from the views.
 
-    CPU time of this process is reported next to wall time because other jobs on a shared
-    machine stretch wall time; with one torch thread, CPU time approximates an idle machine.
+    Returns {"today": (wall, cpu)} and, given a ``baseline`` renderer, {"baseline": ...} timed in
+    the same loop (alternating), so that load on a shared machine hits both alike. CPU time of
+    this process is reported next to wall time because other jobs on a shared machine stretch
+    wall time; with one torch thread, CPU time approximates an idle machine.
     """
     from actaim2.perception.cloud_codec import decode, encode
-    from actaim2.perception.fusion import CameraCloud, FusionConfig
-    from actaim2.perception.pipeline import Perception, PerceptionConfig
+    from actaim2.perception.fusion import CameraCloud
+    from actaim2.perception.pipeline import Perception
     from actaim2.perception.self_filter import RobotSelfFilter
     from actaim2.robots import load_robot_spec
 
-    self_filter = RobotSelfFilter(load_robot_spec("panda"))
+    self_filter = RobotSelfFilter(load_robot_spec("panda"), config.self_filter_margin)
     self_filter.set_joint_positions(list(scene.joints), list(scene.joints.values()))
-    perception = Perception(PerceptionConfig(FusionConfig(), resolution), self_filter)
+    perception = Perception(config, self_filter)
     payloads = [(encode(c.xyz, c.rgb), c.T_world_optical) for c in scene.cameras]
-    wall, cpu = [], []
-    for i in range(repeats + 3):  # the first runs pay for allocations and lazy imports
-        start, start_cpu = time.perf_counter(), time.process_time()
-        clouds = []
-        for wire, T in payloads:
-            decoded = decode(wire.fields, wire.data, wire.height, wire.width, wire.point_step, wire.row_step)
-            clouds.append(CameraCloud(decoded.xyz, decoded.rgb, T))
+
+    def today(clouds):
         perception.process(clouds)
-        if i >= 3:
-            wall.append((time.perf_counter() - start) * 1e3)
-            cpu.append((time.process_time() - start_cpu) * 1e3)
-    return np.array(wall), np.array(cpu)
+
+    def before(clouds):
+        shown = perception.without_robot(perception.fuse(clouds))
+        baseline(shown.xyz, shown.rgb, config.center, config.half_extent, config.resolution)
+
+    paths = {"today": today, **({"baseline": before} if baseline is not None else {})}
+    times: dict[str, tuple[list, list]] = {name: ([], []) for name in paths}
+    for i in range(repeats + 3):  # the first runs pay for allocations and lazy imports
+        for name, run in paths.items():
+            start, start_cpu = time.perf_counter(), time.process_time()
+            clouds = []
+            for wire, T in payloads:
+                decoded = decode(wire.fields, wire.data, wire.height, wire.width, wire.point_step, wire.row_step)
+                clouds.append(CameraCloud(decoded.xyz, decoded.rgb, T))
+            run(clouds)
+            if i >= 3:
+                times[name][0].append((time.perf_counter() - start) * 1e3)
+                times[name][1].append((time.process_time() - start_cpu) * 1e3)
+    return {name: (np.array(wall), np.array(cpu)) for name, (wall, cpu) in times.items()}
 
 
 def _ros_env(fastdds_profile: Path | None) -> dict[str, str]:
@@ -168,16 +205,20 @@ def _stop(process: subprocess.Popen) -> None:
 
 
 def through_node(
-    scene: Scene, resolution: int, rates: list[float], duration: float, workdir: Path, fastdds_profile: Path | None
+    scene: Scene, config, rates: list[float], duration: float, workdir: Path, fastdds_profile: Path | None
 ) -> list[dict]:
-    """One fusion_node; one latency_probe run per input rate. Returns the probes' JSON results."""
+    """One fusion_node with ``config``; one latency_probe run per input rate. Returns the probes' JSON results."""
+    from actaim2.perception.config import save_perception_config
+
     env = _ros_env(fastdds_profile)
     scene_file = workdir / f"{scene.rig}.npz"
     save_scene(scene, scene_file)
+    config_file = workdir / f"perception_{scene.rig}_{config.resolution}.yaml"
+    save_perception_config(config, config_file)
     node = _ros_run(
         "fusion_node",
-        {"cloud_topics": [c.topic for c in scene.cameras], "resolution": resolution, "remove_robot_views": True},
-        env, workdir / f"fusion_node_{scene.rig}_{resolution}.log", stdout=subprocess.DEVNULL,
+        {"cloud_topics": [c.topic for c in scene.cameras], "perception_config": str(config_file)},
+        env, workdir / f"fusion_node_{scene.rig}_{config.resolution}.log", stdout=subprocess.DEVNULL,
     )
     results = []
     try:
@@ -210,18 +251,34 @@ def _row(rig: str, resolution: int, path: str, latencies: np.ndarray, rate_in: s
 def main(args: argparse.Namespace) -> int:
     import torch
 
+    from actaim2.perception.config import load_perception_config
+
+    from actaim2.perception.memory import keep_freed_memory
+
     torch.set_num_threads(args.threads)
+    kept = keep_freed_memory()  # as fusion_node does: freed buffers stay in the heap
     print(
         f"machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f} at start, torch threads {args.threads}, "
+        f"freed memory kept in the heap (as in fusion_node): {kept}, "
         f"Fast DDS profile: {args.fastdds_profile or os.environ.get('FASTRTPS_DEFAULT_PROFILES_FILE') or 'default'}"
     )
+    baseline = baseline_renderer(args.baseline) if args.baseline else None
     print("\n| rig | views px | path | input Hz | output Hz | p50 ms | p99 ms | CPU p50 ms | n | target |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     scenes = {rig: build_scene(rig) for rig in args.rigs}
+    configs = {(rig, r): load_perception_config(rig).replace(resolution=r) for rig in args.rigs for r in args.resolutions}
+    ratios = []
     for rig, scene in scenes.items():
         for resolution in args.resolutions:
-            wall, cpu = in_process(scene, resolution, args.repeats)
-            print(_row(rig, resolution, "in-process", wall, "", None, cpu), flush=True)
+            timed = in_process(scene, configs[rig, resolution], args.repeats, baseline)
+            print(_row(rig, resolution, "in-process", timed["today"][0], "", None, timed["today"][1]), flush=True)
+            if "baseline" in timed:
+                print(_row(rig, resolution, f"in-process, renderer of {args.baseline}", timed["baseline"][0], "", None, timed["baseline"][1]), flush=True)
+                ratios.append((rig, resolution, *(np.median(timed["today"][k]) / np.median(timed["baseline"][k]) for k in (0, 1))))
+    for rig, resolution, wall, cpu in ratios:
+        limit = SPLAT_COST_LIMIT[2] if (rig, resolution) == SPLAT_COST_LIMIT[:2] else None
+        verdict = f" (target <= {limit}x: {'met' if cpu <= limit else 'MISSED'} on CPU time)" if limit else ""
+        print(f"splatting cost, {rig} {resolution} px: p50 today / renderer of {args.baseline} = {wall:.2f}x wall, {cpu:.2f}x CPU{verdict}")
     if args.skip_node:
         return 0
     if shutil.which("ros2") is None:
@@ -231,7 +288,7 @@ def main(args: argparse.Namespace) -> int:
         for rig, scene in scenes.items():
             for resolution in args.resolutions:
                 rates = [NODE_RATES[rig], CAPACITY_RATE]
-                for result in through_node(scene, resolution, rates, args.duration, Path(tmp), args.fastdds_profile):
+                for result in through_node(scene, configs[rig, resolution], rates, args.duration, Path(tmp), args.fastdds_profile):
                     if "error" in result:
                         print(f"| {rig} | {resolution} | node | {result['rate']:g} | error: {result['error']} | | | | | |")
                         continue

@@ -15,21 +15,18 @@ from pathlib import Path
 
 import numpy as np
 
-from actaim2.perception.fusion import FusionConfig
-from actaim2.perception.ortho_views import DEFAULT_RESOLUTION, VIEWS
+from actaim2.perception.ortho_views import VIEWS
 
 CLOUD_SUFFIXES = (".npz", ".ply", ".pcd")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    defaults = FusionConfig()
     parser.add_argument("input", type=Path, help="rosbag2 folder, .mcap/.db3 file, or a cloud (.npz with xyz[, rgb, T_world_cloud]; .ply/.pcd in world)")
     parser.add_argument("--out", type=Path, default=Path("views"), help="output folder (created)")
     parser.add_argument("--topics", nargs="+", help="PointCloud2 topics to fuse (default: every cloud topic but /fused_points)")
-    parser.add_argument("--center", type=float, nargs=3, default=list(defaults.center), metavar=("X", "Y", "Z"), help="workspace centre, world (m)")
-    parser.add_argument("--half-extent", type=float, default=defaults.half_extent, help="half side of the workspace cube (m)")
-    parser.add_argument("--voxel-size", type=float, default=defaults.voxel_size, help="voxel grid (m), 0 = none")
-    parser.add_argument("--resolution", type=int, default=DEFAULT_RESOLUTION, help="pixels per view side")
+    parser.add_argument("--perception", default="azure_kinect",
+                        help="perception configuration: a rig name (ring5, azure_kinect) or a YAML (actaim2.perception.config)")
+    parser.add_argument("--resolution", type=int, help="pixels per view side (default: the configuration's)")
     parser.add_argument("--slop", type=float, default=0.05, help="s: clouds this close in time are fused together")
     parser.add_argument("--calibration", type=Path, help="extrinsics YAML instead of the bag's /tf_static")
     parser.add_argument("--remove-robot", metavar="ROBOT", help="remove this robot (preset or YAML) at the bag's /joint_states")
@@ -37,13 +34,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-frames", type=int, default=0, help="stop after this many frames (0 = all)")
 
 
-def _save(views: np.ndarray, half_extent: float, out: Path, stem: str) -> None:
+def _save(views: np.ndarray, channels: tuple[str, ...], out: Path, stem: str) -> None:
     from PIL import Image
 
     from actaim2.perception.ortho_views import depth_mosaic, rgb_mosaic
 
-    Image.fromarray(rgb_mosaic(views)).save(out / f"{stem}_rgb.png")
-    Image.fromarray(depth_mosaic(views, half_extent)).save(out / f"{stem}_depth.png")
+    Image.fromarray(rgb_mosaic(views, channels)).save(out / f"{stem}_rgb.png")
+    Image.fromarray(depth_mosaic(views, channels)).save(out / f"{stem}_depth.png")
 
 
 def _load_cloud_file(path: Path):
@@ -124,13 +121,18 @@ def _bag_frames(args: argparse.Namespace, perception):
 
 
 def main(args: argparse.Namespace) -> int:
-    from actaim2.perception.pipeline import EmptyObservationError, Perception, PerceptionConfig
+    from actaim2.perception.config import load_perception_config
+    from actaim2.perception.pipeline import EmptyObservationError, Perception
     from actaim2.perception.self_filter import RobotSelfFilter
     from actaim2.robots import load_robot_spec
 
-    fusion = FusionConfig(tuple(args.center), args.half_extent, args.voxel_size)
-    self_filter = RobotSelfFilter(load_robot_spec(args.remove_robot)) if args.remove_robot else None
-    config = PerceptionConfig(fusion, args.resolution, remove_robot_fused=False, remove_robot_views=self_filter is not None)
+    try:
+        config = load_perception_config(args.perception)
+        config = config.replace(remove_robot_views=bool(args.remove_robot), resolution=args.resolution or config.resolution)
+    except (FileNotFoundError, ValueError) as exc:
+        print(f"actaim2 render: {exc}")
+        return 2
+    self_filter = RobotSelfFilter(load_robot_spec(args.remove_robot), config.self_filter_margin) if args.remove_robot else None
     perception = Perception(config, self_filter)
     args.out.mkdir(parents=True, exist_ok=True)
     if not args.input.exists():
@@ -141,12 +143,12 @@ def main(args: argparse.Namespace) -> int:
             if self_filter is not None:
                 print("actaim2 render: --remove-robot needs joint states, which only a bag has")
                 return 2
-            _save(perception.process([_load_cloud_file(args.input)]).views, args.half_extent, args.out, args.input.stem)
+            _save(perception.process([_load_cloud_file(args.input)]).views, config.channels, args.out, args.input.stem)
             print(f"wrote {args.out / args.input.stem}_rgb.png and _depth.png ({', '.join(VIEWS)})")
             return 0
         frames = 0
         for frames, views in enumerate(_bag_frames(args, perception), start=1):
-            _save(views, args.half_extent, args.out, f"frame_{frames - 1:04d}")
+            _save(views, config.channels, args.out, f"frame_{frames - 1:04d}")
             if frames == args.max_frames:
                 break
     except (ValueError, KeyError, EmptyObservationError) as exc:
