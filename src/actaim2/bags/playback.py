@@ -2,16 +2,17 @@
 
 Pass ``k`` of a replay maps bag time ``t`` to the wall time ``w_k + (t - t_first) / rate``, where
 ``t_first`` is the first played timestamp (at or after the start offset) and ``w_k`` the wall
-time the pass began; with ``loop`` the next pass begins when the last message went out. While
+time the pass began; with ``loop`` the next pass begins as soon as the last message went out. While
 waiting, /clock ticks carry the bag time of the moment, ``t_first + (now - w_k) * rate``.
 
 Reading, decompressing and checking messages happens in a prefetch thread a few messages
-ahead (given a head start at each pass), so a large cloud being read does not delay the one
-before it. The timing error of each
+ahead (given a head start, and reading on into the next pass of a loop), so a large cloud being
+read does not delay the one before it. The timing error of each
 message (publish time minus due time) is kept for the p50/p99 the player reports.
 """
 from __future__ import annotations
 
+import itertools
 import queue
 import threading
 import time
@@ -20,7 +21,7 @@ from typing import Callable
 
 import numpy as np
 
-from actaim2.bags.source import BagMessage, BagSource
+from actaim2.bags.source import BagSource
 
 PREFETCH = 32  # messages read ahead of the one being waited for
 HEAD_START_S = 1.0  # at most this long, a pass waits for the reader to fill its queue
@@ -86,25 +87,15 @@ class Player:
 
     def run(self) -> PlayStats:
         started = self._now()
-        start_ns = self._source.start_ns + self._options.start_offset_ns
-        while not self._stop.is_set():
-            played = self._play_pass(start_ns)
-            self.stats.passes += 1
-            if not self._options.loop or not played:
-                break
-        self.stats.seconds = (self._now() - started) / 1e9
-        return self.stats
-
-    def _play_pass(self, start_ns: int) -> int:
         prefetched: queue.Queue = queue.Queue(maxsize=PREFETCH)
-        done = threading.Event()  # this pass is over (finished, stopped, or failed)
-        reader = threading.Thread(target=self._prefetch, args=(prefetched, start_ns, done), name="bag_prefetch", daemon=True)
+        done = threading.Event()  # the replay is over (finished, stopped, or failed)
+        reader = threading.Thread(target=self._prefetch, args=(prefetched, done), name="bag_prefetch", daemon=True)
         reader.start()
         # A head start for the reader (its first messages also pay for rosbags' code generation).
         deadline = time.monotonic() + HEAD_START_S
         while not prefetched.full() and reader.is_alive() and time.monotonic() < deadline:
             time.sleep(0.005)
-        played, first, wall0 = 0, None, 0
+        current, first, wall0 = -1, 0, 0
         next_tick = self._now()
         try:
             while not self._stop.is_set():
@@ -114,9 +105,10 @@ class Player:
                     continue  # the reader is still reading (or the stop is being seen)
                 if item is _END:
                     break
-                message: BagMessage = item
-                if first is None:
-                    first, wall0 = message.timestamp, self._now()
+                pass_index, message = item
+                if pass_index != current:  # a new pass starts now, right after the previous one
+                    current, first, wall0 = pass_index, message.timestamp, self._now()
+                    self.stats.passes = pass_index + 1
                 due = wall0 + int((message.timestamp - first) / self._options.rate)
                 next_tick = self._wait(due, next_tick, first, wall0)
                 if self._stop.is_set():
@@ -124,7 +116,6 @@ class Player:
                 self.stats.lateness_ns.append(self._now() - due)
                 self._publishers[message.topic](message.data)
                 self.stats.published[message.topic] += 1
-                played += 1
         finally:
             done.set()
             while reader.is_alive():  # a reader blocked on a full queue must see ``done``
@@ -132,7 +123,8 @@ class Player:
                     prefetched.get(timeout=0.05)
                 except queue.Empty:
                     pass
-        return played
+        self.stats.seconds = (self._now() - started) / 1e9
+        return self.stats
 
     def _wait(self, due: int, next_tick: int, first: int, wall0: int) -> int:
         """Sleep until ``due``, publishing /clock ticks on the way; returns the next tick time."""
@@ -149,7 +141,8 @@ class Player:
             if self._stop.wait((wake - now) / 1e9):
                 return next_tick
 
-    def _prefetch(self, out: queue.Queue, start_ns: int, done: threading.Event) -> None:
+    def _prefetch(self, out: queue.Queue, done: threading.Event) -> None:
+        """Reads ahead across passes, so a loop restarts without a gap."""
         def put(item: object) -> bool:
             while not (done.is_set() or self._stop.is_set()):
                 try:
@@ -159,9 +152,15 @@ class Player:
                     continue
             return False
 
+        start_ns = self._source.start_ns + self._options.start_offset_ns
         try:
-            for message in self._source.messages(set(self._publishers), start_ns):
-                if not put(message):
+            for pass_index in itertools.count():
+                played = 0
+                for message in self._source.messages(set(self._publishers), start_ns):
+                    if not put((pass_index, message)):
+                        return
+                    played += 1
+                if not self._options.loop or not played:
                     return
         finally:
             put(_END)
