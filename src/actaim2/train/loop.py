@@ -136,7 +136,7 @@ class Trainer:
             for pid, entries in state["state"].items():
                 for key, value in entries.items():
                     tensors[f"optim.{pid}.{key}"] = torch.as_tensor(value)
-            meta["optimizer_groups"] = [{k: v for k, v in g.items() if k != "params"} for g in state["param_groups"]]
+            meta["optimizer_groups"] = state["param_groups"]
         tensors["rng.torch"] = torch.get_rng_state()
         checkpoint.save(self.out / STATE, tensors, meta)
 
@@ -234,10 +234,25 @@ class Trainer:
 
     def loss(self, phase: str, data: TrainingData, items: np.ndarray, wrapped: dict | None = None,
              rng: np.random.Generator | None = None) -> tuple[torch.Tensor, dict[str, float]]:
-        """Loss of one (per-rank) batch of ``items`` for ``phase``.
+        """Total loss of one (per-rank) batch for ``phase``: L_action + w L_ELBO (either alone in pretraining)."""
+        action, elbo, metrics = self.losses(phase, data, items, wrapped, rng)
+        if action is None:
+            loss = elbo
+        elif elbo is None:
+            loss = action
+        else:
+            loss = action + self.config.joint_elbo_weight * elbo
+        metrics["loss"] = loss.item()
+        return loss, metrics
+
+    def losses(self, phase: str, data: TrainingData, items: np.ndarray, wrapped: dict | None = None,
+               rng: np.random.Generator | None = None) -> tuple[torch.Tensor | None, torch.Tensor | None, dict[str, float]]:
+        """(L_action or None, L_ELBO or None, metrics) of one batch of ``items``.
 
         ``wrapped`` maps modules to their DDP wrappers; ``rng`` draws the scene augmentation
-        (none without it, as in validation).
+        (none without it, as in validation). In the joint phase the predictor reads the
+        selector's reconstruction of z *detached* (sg[eps]), so L_action has no path into the
+        selector (tests/train/test_stop_gradient.py).
         """
         wrapped = wrapped or {}
         selector, predictor = wrapped.get(self.selector, self.selector), wrapped.get(self.predictor, self.predictor)
@@ -245,24 +260,22 @@ class Trainer:
         with self._autocast():
             if phase == "selector":
                 views, z = data.selector_batch(items[:, 0], self.device)
-                loss, _, metrics = selector_loss(selector, views, self.selector.standardise(z), weights)
-                return loss, {"loss": loss.item(), **metrics}
+                elbo, _, metrics = selector_loss(selector, views, self.selector.standardise(z), weights)
+                return None, elbo, metrics
             batch = data.keyframe_batch(items, self.device)
             eps_true = self.selector.standardise(batch["z"])
             metrics: dict[str, float] = {}
+            elbo = None
+            eps_in = eps_true
             if phase == "joint":
                 elbo, eps_hat, sel_metrics = selector_loss(selector, batch["init_views"], eps_true, weights)
-                eps_in = eps_hat.detach()  # sg[eps]: the action loss must not reach the selector
+                eps_in = eps_hat.detach()
                 metrics.update({f"selector_{k}": v for k, v in sel_metrics.items()})
-            else:
-                elbo, eps_in = None, eps_true
             views, keypose = self.augment(batch["views"], batch["keypose"], rng)
-            views = views
             out = predictor(views, eps_in, proprio_features(batch["gripper"], batch["phase"]))
-            act, parts = action_loss(out, action_targets(keypose, self.placement, views.shape[-1]))
-            loss = act if elbo is None else act + self.config.joint_elbo_weight * elbo
-            metrics.update({"loss": loss.item(), "action": act.item(), **{k: float(v) for k, v in parts.items()}})
-            return loss, metrics
+            action, parts = action_loss(out, action_targets(keypose, self.placement, views.shape[-1]))
+            metrics.update({"action": action.item(), **{k: float(v) for k, v in parts.items()}})
+            return action, elbo, metrics
 
     def augment(self, views: torch.Tensor, keypose: torch.Tensor,
                 rng: np.random.Generator | None) -> tuple[torch.Tensor, torch.Tensor]:

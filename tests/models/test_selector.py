@@ -1,0 +1,85 @@
+"""Mode selector internals: the analytic cluster posterior, the Gumbel-max draw, the sampling API."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from scipy.special import logsumexp, softmax
+from scipy.stats import chisquare, multivariate_normal
+
+from actaim2.models.gumbel import gumbel_max
+from actaim2.models.obs_encoder import ObsEncoderConfig
+from actaim2.models.registry import build_selector
+from actaim2.models.selector import cluster_log_posterior
+from actaim2.models.selector_base import SelectorConfig
+
+SMALL = dict(z_dim=12, z_tokens=3, width=32, blocks=1, decoder_layers=1, decoder_heads=2, latent_dim=6, y_dim=4,
+             obs=ObsEncoderConfig(input_resolution=16, widths=(8, 16), token_dim=16))
+
+
+def bayes_reference(x: np.ndarray, means: np.ndarray, variances: np.ndarray, pi: np.ndarray) -> np.ndarray:
+    """q(c | x) = pi_c N(x; mu_c, diag var_c) / sum_l ..., by scipy, one sample at a time."""
+    out = np.zeros((len(x), len(pi)))
+    for b in range(len(x)):
+        log_joint = np.array([np.log(pi[k]) + multivariate_normal(means[b, k], np.diag(variances[b, k])).logpdf(x[b])
+                              for k in range(len(pi))])
+        out[b] = np.exp(log_joint - logsumexp(log_joint))
+    return out
+
+
+def test_cluster_posterior_matches_bayes_and_sums_to_one():
+    rng = np.random.default_rng(0)
+    b, k, d = 16, 8, 5
+    x = rng.normal(size=(b, d))
+    means = rng.normal(size=(b, k, d)) * 0.7
+    variances = np.exp(rng.normal(size=(b, k, d)) * 0.5)
+    pi = softmax(rng.normal(size=k))
+    got = torch.exp(cluster_log_posterior(torch.from_numpy(x), torch.from_numpy(means),
+                                          torch.log(torch.from_numpy(variances)), torch.log(torch.from_numpy(pi)))).numpy()
+    np.testing.assert_allclose(got, bayes_reference(x, means, variances, pi), atol=1e-6, rtol=0)
+    np.testing.assert_allclose(got.sum(axis=1), 1.0, atol=1e-12)
+    assert got.std() > 0.05  # the case is not degenerate: posteriors differ across clusters
+
+
+def test_cluster_posterior_is_one_hot_on_separated_components_and_prior_when_they_coincide():
+    k, d = 8, 4
+    means = torch.arange(k, dtype=torch.float64)[:, None].repeat(1, d) * 20.0  # components 40 sigma apart
+    logvar = torch.zeros(k, d, dtype=torch.float64)
+    log_pi = torch.log(torch.tensor(softmax(np.linspace(-1, 1, k))))
+    x = means[[2, 5, 7]] + 0.1
+    q = torch.exp(cluster_log_posterior(x, means.expand(3, -1, -1), logvar.expand(3, -1, -1), log_pi))
+    np.testing.assert_allclose(q.numpy(), np.eye(k)[[2, 5, 7]], atol=1e-9)
+    same = torch.zeros(3, k, d, dtype=torch.float64)
+    q = torch.exp(cluster_log_posterior(torch.randn(3, d, dtype=torch.float64), same, same, log_pi))
+    np.testing.assert_allclose(q.numpy(), np.exp(log_pi.numpy())[None].repeat(3, 0), atol=1e-12)
+
+
+def test_gumbel_max_draws_follow_softmax_of_logits():
+    logits = torch.tensor([1.5, 0.2, -0.7, 0.0, 2.1, -2.0, 0.9, 0.4])
+    draws = gumbel_max(logits.expand(100_000, -1), torch.Generator().manual_seed(0))
+    counts = np.bincount(draws.numpy(), minlength=len(logits))
+    expected = softmax(logits.double().numpy()) * len(draws)
+    assert chisquare(counts, expected).pvalue > 0.001
+
+
+@pytest.mark.parametrize("kind", ["cgmvae", "cvae", "vqvae"])
+def test_sampling_interface(kind):
+    torch.manual_seed(0)
+    model = build_selector(SelectorConfig(kind=kind, **SMALL)).eval()
+    views = torch.rand(3, 5, 8, 16, 16)
+    a = model.sample(views, None, torch.Generator().manual_seed(3))
+    b = model.sample(views, None, torch.Generator().manual_seed(3))
+    assert a.eps.shape == (3, 12) and torch.equal(a.eps, b.eps) and torch.equal(a.cluster, b.cluster)
+    if kind == "cvae":
+        assert (a.cluster == -1).all() and a.cluster_probabilities.shape == (3, 0)
+        with pytest.raises(ValueError, match="no clusters"):
+            model.sample(views, 2)
+        return
+    assert a.cluster_probabilities.shape == (3, 8)
+    torch.testing.assert_close(a.cluster_probabilities.sum(-1), torch.ones(3))
+    chosen = model.sample(views, 5, torch.Generator().manual_seed(3))
+    assert (chosen.cluster == 5).all()
+    other = model.sample(views, 6, torch.Generator().manual_seed(3))
+    assert not torch.allclose(chosen.eps, other.eps)  # the cluster changes eps
+    with pytest.raises(ValueError, match="cluster must be in 0..7"):
+        model.sample(views, 8)
