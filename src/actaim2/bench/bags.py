@@ -109,6 +109,30 @@ def make_source_bag(path: Path, frames: int) -> dict[str, int]:
     return counts
 
 
+def writer_only(source: Path, storage: str, compression: str, workdir: Path, repeats: int = 3) -> tuple[float, float]:
+    """MB/s and CPU % of the recording pipeline alone (queue + writer thread + disk), no DDS:
+    the headroom of our code, apart from receiving and from the other processes."""
+    from actaim2.bags.metadata import TopicSpec
+    from actaim2.bags.recorder import Recorder
+    from actaim2.bags.source import BagSource
+    from actaim2.bags.writer import BagWriter
+
+    bag = BagSource(source, print)
+    messages = list(bag.messages({t.name for t in bag.playable()}))
+    recorder = Recorder(lambda name: BagWriter(workdir / name, storage, compression), queue_limit_bytes=2**40)
+    for topic in bag.playable():
+        recorder.add_topic(TopicSpec(topic.name, topic.msgtype, "", "", topic.offered_qos), True, False)
+    recorder.start_bag("writer_only", T0)
+    wall, cpu = time.perf_counter(), time.process_time()
+    for k in range(repeats):
+        for m in messages:
+            recorder.put(m.topic, m.timestamp + k * 10**9, m.data)
+    recorder.stop()
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    shutil.rmtree(workdir / "writer_only")
+    return repeats * sum(len(m.data) for m in messages) / wall / 1e6, 100.0 * cpu / wall
+
+
 def _cpu_seconds(pid: int) -> float:
     fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime + stime
@@ -194,6 +218,9 @@ def main(args: argparse.Namespace) -> int:
         counts = make_source_bag(source, args.frames)
         print(f"source bag: {sum(counts.values())} messages, {sum(p.stat().st_size for p in source.iterdir()) / 1e6:.0f} MB "
               f"({args.frames} ring5 frames, looped), made in {time.perf_counter() - started:.1f} s\n")
+        mbps, cpu = writer_only(source, args.storage, args.compression, workdir)
+        print(f"recording pipeline alone (queue + writer thread + {args.storage} {args.compression}, no DDS): "
+              f"{mbps:.0f} MB/s at {cpu:.0f}% CPU\n")
         topics = sorted(counts)
         results = []
         for rate in args.rates:
