@@ -26,13 +26,14 @@ from __future__ import annotations
 
 import itertools
 import json
+import logging
 import multiprocessing as mp
 import os
 import time
 import zlib
 from collections import deque
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Iterator
 
@@ -55,8 +56,9 @@ from actaim2.data.splits import TRAIN, check_no_leak, split_of
 from actaim2.data.stats import RUNS_FILE
 from actaim2.data.storage import DatasetReader, DatasetWriter, EncodedTrajectory, encode_trajectory, trajectory_id
 from actaim2.data.trajectory import CameraImage, ObjectState, Observation, Trajectory
+from actaim2.perception.config import CAPTURE_FIELDS, RENDER_PATHS, PerceptionConfig, capture_part, check_compatible, load_perception_config
 from actaim2.robots import load_robot_spec
-from actaim2.sim.env import WORKSPACE_CENTER, SimEnv
+from actaim2.sim.env import SimEnv
 from actaim2.sim.objects.catalog import object_id
 
 EXPLORE_SAMPLERS = ("random", "grasp")
@@ -64,6 +66,8 @@ SAMPLER_CODES = {"random": 1, "grasp": 2, "gmm": 3}
 PRECHECK_IK_RESTARTS = 8
 IN_FLIGHT_PER_WORKER = 3
 SKIPPED_FILE = "skipped.jsonl"  # trajectories given up on (no feasible sample): not retried on resume
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -74,7 +78,9 @@ class CollectConfig:
     workers: int = 2  # processes; 0 runs in this process (debugging, tests)
     seed: int = 0
     robot: str = "panda"
-    render_path: str = "auto"
+    perception: str = "ring5"  # rig name or PerceptionConfig YAML: the rig, cube and render path of the pictures
+    render_path: str = ""  # "" = the perception configuration's; "raycast" asks for ray casting explicitly
+    allow_raycast: bool = False  # without a Vulkan device, fall back to ray casting instead of refusing
     dof_fraction: float = 0.5  # objects start half-open (paper)
     velocity_scaling: float = 0.5
     max_attempts: int = 4  # sample + execute attempts per trajectory
@@ -110,18 +116,52 @@ def from_sim(observation) -> Observation:
             for name, frame in observation.frames.items()}
 
 
+def collection_perception(config: CollectConfig) -> PerceptionConfig:
+    """The perception configuration the pictures are taken under, its render path resolved.
+
+    A rig's configuration names the renderer its training pictures come from (SAPIEN). Ray
+    casting draws collision meshes in flat colours, other pictures than the models will be
+    served, so collection takes it only when asked: ``render_path="raycast"``, or
+    ``allow_raycast`` when no Vulkan device exists. Either way it is logged, and the render
+    path is recorded in ``dataset.json``, where training runs check it.
+    """
+    from actaim2.sim.render_path import vulkan_device_error
+
+    perception = load_perception_config(config.perception)
+    requested = config.render_path or perception.render_path
+    if requested not in RENDER_PATHS:
+        raise ValueError(f"render path '{requested}' is not one of {RENDER_PATHS}")
+    if requested == "raycast":
+        log.warning("collecting ray-cast pictures (collision meshes, flat colours), as requested; dataset.json records it")
+        return perception.replace(render_path="raycast")
+    error = vulkan_device_error()
+    if error is None:
+        return perception.replace(render_path="sapien")
+    if not config.allow_raycast:
+        raise ValueError(f"no Vulkan device for SAPIEN rendering ({error}): collection does not fall back to ray casting "
+                         f"by itself. Fix the device (VK_ICD_FILENAMES, see scripts/env.sh), or pass --allow-raycast to "
+                         f"collect ray-cast pictures (recorded in dataset.json; models trained on them expect them)")
+    log.warning("no Vulkan device (%s): collecting ray-cast pictures, as --allow-raycast permits; dataset.json records it", error)
+    return perception.replace(render_path="raycast")
+
+
 class TrajectoryCollector:
-    """Runs tasks in one process: a simulator with the ring of cameras, the keypose planner, the samplers."""
+    """Runs tasks in one process: a simulator with the rig's cameras, the keypose planner, the samplers.
+
+    The configuration's render path is taken as it is (``collect`` resolves it once, with
+    :func:`collection_perception`): without a Vulkan device a ``sapien`` path fails here.
+    """
 
     def __init__(self, config: CollectConfig):
         self.config = config
-        self.env = SimEnv(config.robot, cameras="ring5", render_path=config.render_path)
+        perception = load_perception_config(config.perception)
+        self.env = SimEnv(config.robot, cameras=perception.rig, render_path=config.render_path or perception.render_path)
         robot = RobotModel(self.env.spec)
         checker = CollisionChecker(robot)
         self.planner = KeyposePlanner(robot, checker, IKSolver(robot, checker))
         # Screening samples needs no exhaustive search: few restarts, the planner retries properly.
         self.screen_ik = IKSolver(robot, checker, IKOptions(restarts=PRECHECK_IK_RESTARTS))
-        self.cloud_config = CloudConfig(center=tuple(float(v) for v in WORKSPACE_CENTER))
+        self.cloud_config = CloudConfig(center=perception.center, half_extent=perception.half_extent)
         sampling = SamplingConfig.for_robot(self.env.spec)
         self.samplers: dict[str, Sampler] = {"random": RandomSampler(sampling), "grasp": HeuristicGraspSampler(self.cloud_config, sampling)}
         self.executor = SimEnvExecutor(self.env)
@@ -352,9 +392,13 @@ def collect(config: CollectConfig) -> dict:
     if n_gmm > 0 and not any(split_of(c, i) == TRAIN for c, i in config.objects):
         raise ValueError(f"GMM-adaptive sampling needs visual labels, whose threshold is calibrated on {TRAIN} "
                          f"objects: add some, or collect with --gmm 0")
+    perception = collection_perception(config)
+    config = replace(config, render_path=perception.render_path)  # workers take the resolved path as it is
+    if (config.out / "dataset.json").exists():  # resuming: the pictures must be taken as before
+        check_compatible(DatasetReader(config.out).perception_capture(), perception, CAPTURE_FIELDS, ("dataset", "this collection"))
     config.out.mkdir(parents=True, exist_ok=True)
-    info = {"rig": "ring5", "robot": config.robot, "seed": config.seed, "objects": [list(o) for o in config.objects],
-            "per_object": config.per_object, "dof_fraction": config.dof_fraction}
+    info = {"rig": perception.rig, "perception": capture_part(perception), "robot": config.robot, "seed": config.seed,
+            "objects": [list(o) for o in config.objects], "per_object": config.per_object, "dof_fraction": config.dof_fraction}
     report: dict = {"stages": []}
     with DatasetWriter(config.out, info) as writer:
         explore = [t for s in EXPLORE_SAMPLERS for t in stage_tasks(config, s, range(config.per_object.get(s, 0)))]

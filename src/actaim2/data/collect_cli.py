@@ -30,7 +30,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int, default=2, help="worker processes (0 = in this process)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--robot", default="panda", help="robot preset or YAML (actaim2.robots)")
-    parser.add_argument("--render-path", default="auto", choices=["auto", "sapien", "raycast"])
+    parser.add_argument("--perception", default="ring5",
+                        help="perception configuration: rig name (ring5, azure_kinect) or YAML; fixes the cameras, cube and render path")
+    parser.add_argument("--render-path", default="", choices=["", "sapien", "raycast"],
+                        help="override the configuration's render path; raycast = collect ray-cast pictures on purpose")
+    parser.add_argument("--allow-raycast", action="store_true",
+                        help="without a Vulkan device, collect ray-cast pictures instead of refusing (logged, recorded in dataset.json)")
     parser.add_argument("--encoder", type=Path, help="a saved encoder E (ImageEncoder.save); default: train one on the data")
     parser.add_argument("--vgg19-weights", type=Path, help="torchvision VGG-19 state_dict file: use VGG-19 as E")
     parser.add_argument("--encoder-steps", type=int, default=800, help="training steps of the default encoder")
@@ -90,12 +95,13 @@ def main(args: argparse.Namespace) -> int:
             return 2
     config = CollectConfig(
         out=args.out, objects=tuple(objects), per_object={"random": args.random, "grasp": args.grasp, "gmm": args.gmm},
-        workers=args.workers, seed=args.seed, robot=args.robot, render_path=args.render_path, rounds=args.rounds,
+        workers=args.workers, seed=args.seed, robot=args.robot, perception=args.perception, render_path=args.render_path,
+        allow_raycast=args.allow_raycast, rounds=args.rounds,
         encoder=encoder, encoder_steps=args.encoder_steps, show_progress=not args.no_progress,
     )
     try:
         report = collect(config)
-    except ValueError as exc:  # e.g. no training-split trajectory to calibrate the label on
+    except (ValueError, FileNotFoundError) as exc:  # no label calibration split, no Vulkan device, another rig's dataset
         print(f"actaim2 collect: {exc}", file=sys.stderr)
         return 1
     for stage in report["stages"]:

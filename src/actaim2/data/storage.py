@@ -2,7 +2,8 @@
 
 Layout of a dataset folder::
 
-    dataset.json          format version, rig, collection settings (written once)
+    dataset.json          format version, rig, perception capture fields (actaim2.perception.config:
+                          rig, cube, robot filter, render path), collection settings (written once)
     index.jsonl           one JSON object per stored trajectory (appended after its bytes are on disk)
     labels.jsonl          visual success labels {id, score, success} (rewritten by each labelling)
     chunks/chunk-00000.tar ...
@@ -295,6 +296,17 @@ class DatasetReader:
 
     def __len__(self) -> int:
         return len(self.entries)
+
+    def perception_capture(self) -> dict:
+        """The perception fields the pictures were taken under (``dataset.json``'s ``perception``).
+
+        Training runs and resumed collections check theirs against it
+        (:func:`actaim2.perception.config.check_compatible` with ``CAPTURE_FIELDS``).
+        """
+        if "perception" not in self.info:
+            raise ValueError(f"{self.root}/dataset.json records no perception configuration (collected before "
+                             f"configurations were recorded): its rig, cube and render path are unknown, re-collect it")
+        return dict(self.info["perception"])
 
     def members(self, entry: dict) -> dict[str, bytes]:
         """The raw members (name -> bytes) of one trajectory."""

@@ -7,12 +7,20 @@
 Items carry the cameras' pictures as tensors; given a :class:`actaim2.perception.pipeline.Perception`,
 they also carry the orthographic views recomputed from them (robot removed with the stored joint
 positions when the perception has a self-filter), exactly as the running perception node makes them.
+The perception's configuration must match the one the dataset was collected under in its capture
+fields (rig, cube, robot filter, render path: ``dataset.json``); otherwise the dataset is refused
+with the differing fields named. Its view fields (resolution, channels, splatting) are free.
+
 Selection is by split, sampler and success label ("visual": the self-supervised label, the one
-training uses; "gt": the privileged ground truth, for analysis only).
+training uses; "gt": the privileged ground truth, for analysis only). Datasets hold the training
+split ``train_seen`` unless told otherwise: the other splits are held out for evaluation, and
+loading one needs ``allow_held_out=True`` so that it cannot slip into training by accident.
 """
 from __future__ import annotations
 
+import logging
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 import torch
@@ -20,10 +28,15 @@ from torch.utils.data import Dataset
 
 from actaim2.data.labelling import EMBEDDINGS_FILE
 from actaim2.data.object_cloud import back_project
+from actaim2.data.splits import TRAIN
 from actaim2.data.storage import DatasetReader
 from actaim2.data.trajectory import PHASES, Observation
 from actaim2.keypose import Keypose
+from actaim2.perception.config import CAPTURE_FIELDS, check_compatible
 from actaim2.perception.fusion import CameraCloud
+
+DEFAULT_SPLITS = (TRAIN,)
+log = logging.getLogger(__name__)
 
 
 def keypose_tensor(k: Keypose) -> torch.Tensor:
@@ -43,12 +56,21 @@ def observation_tensors(obs: Observation) -> dict[str, torch.Tensor]:
 
 
 class _StoredDataset(Dataset):
-    def __init__(self, root: str | Path, splits: list[str] | None = None, samplers: list[str] | None = None,
-                 success: str | None = "visual", perception=None):
+    """``splits`` defaults to the training split alone; any other needs ``allow_held_out=True``."""
+
+    def __init__(self, root: str | Path, splits: Sequence[str] = DEFAULT_SPLITS, samplers: list[str] | None = None,
+                 success: str | None = "visual", perception=None, allow_held_out: bool = False):
+        held_out = sorted(set(splits) - {TRAIN})
+        if held_out and not allow_held_out:
+            raise ValueError(f"split(s) {held_out} are held out from training ({TRAIN} is the training split): "
+                             f"pass allow_held_out=True to load them (evaluation, analysis)")
         self.reader = DatasetReader(root)
-        entries = self.reader.entries
-        if splits is not None:
-            entries = [e for e in entries if e["split"] in splits]
+        if perception is not None:  # views recomputed: the pictures must be what this perception expects
+            check_compatible(self.reader.perception_capture(), perception.config, CAPTURE_FIELDS, ("dataset", "training run"))
+        self.splits = tuple(splits)
+        log.info("%s of %s: splits %s%s", type(self).__name__, root, list(self.splits),
+                 " (the default: the training split only)" if self.splits == DEFAULT_SPLITS else "")
+        entries = [e for e in self.reader.entries if e["split"] in self.splits]
         if samplers is not None:
             entries = [e for e in entries if e["sampler"] in samplers]
         if success == "visual":
@@ -66,6 +88,10 @@ class _StoredDataset(Dataset):
         if path.exists():
             with np.load(path) as f:
                 self.embeddings = dict(zip(f["ids"].tolist(), f["z"]))
+
+    def __repr__(self) -> str:
+        default = ", the default" if self.splits == DEFAULT_SPLITS else ""
+        return f"{type(self).__name__}({self.reader.root}, splits={list(self.splits)}{default}, {len(self.entries)} trajectories)"
 
     def _observation_item(self, obs: Observation, joints: dict[str, float]) -> dict[str, torch.Tensor]:
         item = observation_tensors(obs)
