@@ -21,7 +21,6 @@ disk (BagWriter.recover), ``error`` says why, ``on_error`` is called from the wr
 from __future__ import annotations
 
 import threading
-import time
 from collections import OrderedDict, deque
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -48,7 +47,7 @@ class TopicCounts:
 class RecordSummary:
     bags: list[str] = field(default_factory=list)
     topics: dict[str, TopicCounts] = field(default_factory=dict)
-    seconds: float = 0.0
+    seconds: float = 0.0  # from the first to the last message received (their timestamps)
     error: str | None = None
 
     @property
@@ -62,7 +61,7 @@ class RecordSummary:
     def lines(self) -> list[str]:
         mb = self.recorded_bytes / 1e6
         rate = mb / self.seconds if self.seconds > 0 else 0.0
-        out = [f"{len(self.bags)} bag(s), {mb:.1f} MB of messages in {self.seconds:.1f} s ({rate:.1f} MB/s)"
+        out = [f"{len(self.bags)} bag(s), {mb:.1f} MB of messages over {self.seconds:.1f} s ({rate:.1f} MB/s)"
                + (f"; stopped by a write error: {self.error}" if self.error else "")]
         for name, c in sorted(self.topics.items()):
             losses = c.dropped + c.lost
@@ -107,7 +106,7 @@ class Recorder:
         self._ids: dict[str, int] = {}
         self._bags: list[BagWriter] = []
         self._recorded: dict[str, int] = {}
-        self._started = time.monotonic()
+        self._span = [None, None]  # first and last timestamp put
         self.error: str | None = None
         self._thread = threading.Thread(target=self._run, name="bag_writer", daemon=True)
         self._thread.start()
@@ -136,6 +135,7 @@ class Recorder:
         with self._cond:
             counts = self._counts[topic]
             counts.received += 1
+            self._span = [timestamp if self._span[0] is None else self._span[0], timestamp]
             if self.error is not None:
                 return False
             if not self._bag_open and topic not in self._latched_topics:
@@ -160,7 +160,9 @@ class Recorder:
         counts = self.counts()
         for name, c in counts.items():
             c.recorded = self._recorded.get(name, 0)
-        return RecordSummary([str(b.path) for b in self._bags], counts, time.monotonic() - self._started, self.error)
+        first, last = self._span
+        seconds = (last - first) / 1e9 if first is not None else 0.0
+        return RecordSummary([str(b.path) for b in self._bags], counts, seconds, self.error)
 
     def counts(self) -> dict[str, TopicCounts]:
         """A copy of the per-topic counters so far (``recorded`` is filled in by :meth:`stop`)."""
