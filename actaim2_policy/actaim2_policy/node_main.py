@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import signal
 import threading
-from typing import Callable, Protocol
+from typing import Callable
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -23,13 +23,8 @@ from actaim2.runtime import apply_ros_defaults
 SPIN_POLL = 0.1  # s: the longest the loop waits before it looks at its flags again
 
 
-class FinishingNode(Protocol):
-    done: threading.Event
-
-    def finish(self) -> int: ...
-
-
 def run(make_node: Callable[[threading.Event], Node], name: str, args: list[str] | None = None) -> int:
+    """``make_node(stop)`` builds a Node that also has ``done`` (an Event) and ``finish() -> int``."""
     apply_ros_defaults()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop = threading.Event()

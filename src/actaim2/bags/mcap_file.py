@@ -119,7 +119,6 @@ class McapFile:
         self._channels: dict[int, str] = {}  # channel id -> msgtype
         self._pending = _Pending()
         self._chunks: list[_Chunk] = []
-        self.pending_bytes = 0  # message payload bytes not yet on disk
         self._write(MAGIC + _record(_OP_HEADER, _string("ros2") + _string(library)))
         self._header_end = self._good_end = self._bio.tell()
 
@@ -152,7 +151,6 @@ class McapFile:
         self._pending.add(header, topic_id, timestamp)
         self._pending.pieces.append(data)
         self._pending.size += len(data)
-        self.pending_bytes += len(data)
         if self._pending.size >= self._chunk_size:
             self.flush()
 
@@ -184,7 +182,6 @@ class McapFile:
         )
         self._good_end = position
         self._pending = _Pending()
-        self.pending_bytes = 0
 
     @property
     def size(self) -> int:
@@ -214,7 +211,6 @@ class McapFile:
         Raises OSError only if not even an empty summary fits, which leaves a file that only
         a scanning reader opens (actaim2.bags.salvage)."""
         self._pending = _Pending()
-        self.pending_bytes = 0
         try:
             while True:
                 end = self._chunks[-1].end if self._chunks else self._header_end

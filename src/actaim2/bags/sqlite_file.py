@@ -44,7 +44,7 @@ class SqliteFile:
         self._types: set[str] = set()
         self._committed, self._committed_counts = FileStats(path.name), defaultdict(int)
         self._batch: list[tuple[int, int, bytes]] = []
-        self.pending_bytes = 0
+        self._pending_bytes = 0
 
     def add_topic(self, topic_id: int, spec: TopicSpec) -> None:
         self._commit()
@@ -62,12 +62,9 @@ class SqliteFile:
 
     def write(self, topic_id: int, timestamp: int, data: bytes) -> None:
         self._batch.append((topic_id, timestamp, data))
-        self.pending_bytes += len(data)
-        if self.pending_bytes >= self._commit_bytes:
-            self.flush()
-
-    def flush(self) -> None:
-        self._commit()
+        self._pending_bytes += len(data)
+        if self._pending_bytes >= self._commit_bytes:
+            self._commit()
 
     def _commit(self) -> None:
         if not self._batch:
@@ -84,11 +81,11 @@ class SqliteFile:
             self._committed.add(timestamp)
             self._committed_counts[topic_id] += 1
         self._batch = []
-        self.pending_bytes = 0
+        self._pending_bytes = 0
 
     @property
     def size(self) -> int:
-        return self.path.stat().st_size + self.pending_bytes
+        return self.path.stat().st_size + self._pending_bytes
 
     def stats(self) -> tuple[FileStats, dict[int, int]]:
         return self._committed, dict(self._committed_counts)
@@ -102,7 +99,7 @@ class SqliteFile:
     def recover(self) -> None:
         """After a write error: drop the uncommitted batch; the committed messages stay readable."""
         self._batch = []
-        self.pending_bytes = 0
+        self._pending_bytes = 0
         try:
             if self._conn.in_transaction:
                 self._conn.execute("ROLLBACK")
