@@ -10,6 +10,7 @@ Built on ``rosbags`` (record helpers, readers, type system). Files one job each:
   sqlite_file.py  one sqlite3 storage file (rosbag2 schema 4), committed as it goes
   writer.py       a bag directory: storage files, splitting by size or duration, metadata.yaml
   recorder.py     the writer thread behind a byte-bounded queue, episodes, loss counting
+  qos.py          which QoS the recorder subscribes with and the player publishes with
   source.py       reading a bag for replay: per-file, per-topic problems reported, never fatal
   salvage.py      messages before the damage of a truncated MCAP file
   playback.py     original timing (rate, start offset, loop), /clock ticks, timing error

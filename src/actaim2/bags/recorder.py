@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Callable
 
 from actaim2.bags.metadata import TopicSpec
-from actaim2.bags.writer import WRITE_ERRORS, BagWriter
+from actaim2.bags.writer import BagWriter
 
 LATCHED_KEPT = 100  # distinct messages kept per latched topic (tf2's /tf_static listener depth)
 
@@ -194,7 +194,7 @@ class Recorder:
     def _guarded(self, action: Callable[[], None]) -> None:
         try:
             action()
-        except WRITE_ERRORS as exc:
+        except Exception as exc:  # noqa: BLE001 - a write error (or a bug) must end the recording visibly, not the thread silently
             self._fail(exc)
 
     def _handle(self, item: tuple) -> None:
@@ -243,7 +243,7 @@ class Recorder:
             return
         try:
             writer.close()
-        except WRITE_ERRORS:
+        except Exception:
             self._writer = writer  # _fail recovers it
             raise
         self._add_recorded(writer)
@@ -259,7 +259,7 @@ class Recorder:
         if writer is not None:
             try:
                 writer.recover()
-            except WRITE_ERRORS as again:
+            except Exception as again:  # noqa: BLE001 - reported with the first error
                 reason += f" (and finishing the file failed too: {again}; open it with actaim2.bags.salvage)"
             self._add_recorded(writer)
         with self._cond:

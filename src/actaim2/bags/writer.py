@@ -11,7 +11,6 @@ current file with what is completely on disk and writes metadata.yaml for it.
 from __future__ import annotations
 
 import os
-import sqlite3
 from collections import defaultdict
 from pathlib import Path
 from typing import BinaryIO, Callable
@@ -25,7 +24,6 @@ from actaim2.bags.sqlite_file import SqliteFile
 STORAGES = ("mcap", "sqlite3")
 COMPRESSIONS = tuple(COMPRESSORS)
 DEFAULT_CHUNK_SIZE = 786432  # rosbag2's MCAP default (768 KiB)
-WRITE_ERRORS = (OSError, sqlite3.Error)  # what a full disk or a lost directory raises
 
 
 class BagWriter:
