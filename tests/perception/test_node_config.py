@@ -27,3 +27,13 @@ def test_example_calibration_is_valid():
     # The example camera stands in front of the robot and looks back at it, downwards.
     T = transforms["camera_base"]
     assert T[0, 3] > 1.0 and T[:3, 0] @ [-1.0, 0.0, 0.0] > 0.7 and T[2, 0] < 0
+
+
+def test_shipped_fusion_node_yamls_name_a_perception_configuration():
+    from actaim2.perception.config import load_perception_config
+
+    rigs = {}
+    for path in sorted(CONFIG.glob("fusion_node*.yaml")):
+        params = yaml.safe_load(path.read_text())["fusion_node"]["ros__parameters"]
+        rigs[path.name] = load_perception_config(params.get("perception_config", PARAMETERS["perception_config"][0])).rig
+    assert rigs == {"fusion_node.yaml": "azure_kinect", "fusion_node_sim_ring5.yaml": "ring5"}

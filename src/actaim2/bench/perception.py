@@ -225,7 +225,7 @@ def through_node(
         for rate in rates:
             probe = _ros_run(
                 "latency_probe", {"scene_file": str(scene_file), "rate": rate, "duration": duration},
-                env, workdir / f"probe_{scene.rig}_{resolution}_{rate:g}.log", stdout=subprocess.PIPE, text=True,
+                env, workdir / f"probe_{scene.rig}_{config.resolution}_{rate:g}.log", stdout=subprocess.PIPE, text=True,
             )
             out, _ = probe.communicate(timeout=duration + 120)
             lines = [line for line in out.splitlines() if line.startswith("{")]
