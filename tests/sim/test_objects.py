@@ -72,8 +72,43 @@ def test_every_instance_builds(category, cache, scene):
             assert read_meta(folder)["model_cat"] == category
         finally:
             scene.remove_articulation(obj.articulation)
-    if category in ("storage_furniture", "switch", "window"):
-        assert kinds == {"prismatic", "revolute_unwrapped"}, f"{category} should mix drawers/sliders and hinges"
+    if category in ("storage_furniture", "switch", "window", "door", "table", "refrigerator", "box"):
+        assert kinds == {"prismatic", "revolute_unwrapped"}, f"{category} should mix slides and hinges"
+
+
+def test_every_category_has_four_structures_and_every_handle_kind_is_built():
+    from actaim2.sim.objects.categories import LAYOUTS
+    from actaim2.sim.objects.parts import HANDLE_KINDS
+
+    kinds = set()
+    for category in catalog.list_categories():
+        models = [catalog.generate(category, i) for i in catalog.category_instances(category)]
+        layouts = {m.params["layout"] for m in models}
+        signatures = {catalog.structure_signature(m) for m in models}
+        if category != "three_drawer_shelf":  # the real robot's one object
+            assert len(layouts) >= 4 and layouts == set(LAYOUTS[category]), (category, layouts)
+            assert len(signatures) >= 4, category
+        kinds |= {h.kind for m in models for h in m.handles}
+    assert set(HANDLE_KINDS) <= kinds, set(HANDLE_KINDS) - kinds
+
+
+def test_no_two_instances_are_near_duplicates_and_the_rule_catches_one():
+    for category in catalog.list_categories():
+        models = [catalog.generate(category, i) for i in catalog.category_instances(category)]
+        for a in range(len(models)):
+            for b in range(a):
+                assert not catalog.near_duplicates(models[a], models[b]), (models[a].object_id, models[b].object_id)
+    # the rule: the same structure with sizes a little apart is a near-duplicate, another structure never is
+    model = catalog.generate("door", 0)
+    close = catalog.generate("door", 0)
+    close.params["dims"] = {k: min(1.0, v + 0.1) for k, v in close.params["dims"].items()}
+    assert catalog.size_distance(model, close) == pytest.approx(0.1, abs=0.02) and catalog.near_duplicates(model, close)
+    apart = catalog.generate("door", 0)
+    apart.params["dims"] = {k: v + (0.2 if v < 0.5 else -0.2) for k, v in apart.params["dims"].items()}
+    assert catalog.size_distance(model, apart) == pytest.approx(0.2) and not catalog.near_duplicates(model, apart)
+    other = catalog.generate("door", 1)  # another layout
+    other.params["dims"] = dict(model.params["dims"])
+    assert catalog.structure_signature(other) != catalog.structure_signature(model) and not catalog.near_duplicates(model, other)
 
 
 def test_some_objects_have_several_movable_parts(cache):

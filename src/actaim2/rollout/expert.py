@@ -10,7 +10,15 @@ joint axis and the handle annotation - and follows the paper's four-phase primit
   MANIPULATE  p1 -> p2 along the part's motion: a straight line for a prismatic joint, an
               arc about the hinge for a revolute one (the hand turns with the part)
 
-then opens the gripper and backs off. Opening means moving the DoF towards its upper limit,
+then opens the gripper and backs off. The manipulation should keep the arm (its fingers closed)
+off the object's other parts, which stand still while the part and the hand move together,
+and a pushing hand should touch the part only with its fingertips: a variant that does is
+preferred, and one that brushes something is used only when no clean one exists (tight
+stacks of half-open drawers leave no clean push). A manipulation the arm cannot
+follow to its end may be cut short where the part has moved enough *and* stays when released:
+a bistable toggle past its centre, a gravity-loaded part where its weight no longer pulls it
+back harder than its joint friction holds it (privileged: the part's mass, centre of mass,
+friction and behaviour). Opening means moving the DoF towards its upper limit,
 closing towards its lower limit; a drawer (prismatic) is closed by pushing it with the closed
 fingers, everything else is moved by grasping its handle. Every contact is physical: the
 gripper holds the handle by friction only.
@@ -21,6 +29,7 @@ joint velocity limits, then executed by :meth:`SimEnv.follow_trajectory`.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,6 +40,7 @@ from actaim2.control.model import RobotModel
 from actaim2.geometry import rotation_angle
 from actaim2.sim.env import SimEnv
 from actaim2.sim.objects.model import Handle
+from actaim2.sim.objects.physics_table import BISTABLE, COUNTERBALANCED
 from actaim2.sim.objects.surface import surface_points
 from actaim2.sim.success import SUCCESS_FRACTION, moved_fraction
 
@@ -38,6 +48,7 @@ INIT, REACH, GRASP, MANIPULATE = 0, 1, 2, 3  # Keypose.phase values (DESIGN.md)
 FLIP = np.diag([-1.0, -1.0, 1.0, 1.0])  # the same grasp with the fingers swapped (turned about the approach axis)
 HANDLE_CLEARANCE = 0.08  # m: obstacle points this close to the handle are ignored (the hand goes there)
 MIN_PROGRESS = 0.36  # fraction of the range a cut-short manipulation must still cover (success: 0.3)
+PUSH_CONTACT = 0.03  # m: the pushed part's points this close to the fingertips' contact point are theirs to touch
 TILTED_OPENING = 0.6  # fraction of the full gripper stroke
 FREE_MOVE_CLEARANCE = 0.1  # m: the joint-space move ends this much farther back than the pre-pose
 # Grasp variants per handle kind, in order: the approach turned about the TCP x axis (the
@@ -46,10 +57,16 @@ FREE_MOVE_CLEARANCE = 0.1  # m: the joint-space move ends this much farther back
 # (joint 6 limit) nor straight down far away, so handles there are taken at an angle; flat
 # grips (lips, toggles, sliders) turn less, or only about the closing axis.
 _ROUND = [(a, 0) for a in (0, 25, 45, -25, -45)] + [(0, 25), (0, -25)]
-TILTS = {"bar": _ROUND, "knob": _ROUND,
+TILTS = {"bar": _ROUND, "knob": _ROUND, "u_handle": _ROUND,
          "lever": _ROUND + [(0, 40), (0, -40)],
+         # a lip between a pocket and a free edge, a panel edge pinched across its thickness:
+         # the fingers may turn along the lip or edge (about the closing axis), hardly across it
+         "recessed": [(0, 0), (0, 20), (0, -20), (0, 35), (0, -35), (12, 0), (-12, 0)],
+         "flush": [(0, 0), (0, 20), (0, -20), (0, 35), (0, -35), (12, 0), (-12, 0), (-30, 0), (-45, 0), (-60, 0),
+                   (30, 0), (45, 0)],
          "spout": [(0, 0), (25, 0), (-25, 0), (0, 25), (0, -25), (0, 40), (0, -40)],
-         "edge": [(0, 0), (20, 0), (30, 0), (-20, 0), (0, 25), (0, -25), (0, 45), (0, -45)],
+         "edge": [(0, 0), (20, 0), (30, 0), (-20, 0), (0, 25), (0, -25), (0, 45), (0, -45), (45, 0), (60, 0), (-30, 0),
+                  (-45, 0), (-60, 0)],
          # small square knobs pinched on their flat faces: turning about the closing axis only
          "toggle": [(0, 0), (0, 20), (0, -20), (0, 35), (0, -35)],
          "slider": [(0, 0), (0, 20), (0, -20), (0, 35), (0, -35)]}
@@ -96,6 +113,10 @@ class ScriptedExpert:
         self.manipulation_speed = manipulation_speed
         model = RobotModel(env.spec)
         self._checker = CollisionChecker(model, Workspace(table_height=0.0))
+        # the other parts, for manipulations: checked with the fingers closed, as they are then
+        closed = RobotModel(dataclasses.replace(env.spec, gripper_open=env.spec.gripper_closed))
+        self._sweep_checker = CollisionChecker(closed, Workspace(table_height=0.0))
+        self._part_checker = CollisionChecker(closed, Workspace(table_height=0.0))  # the pushed part, off the fingertips
         self._ik_local = IKSolver(model, self._checker, IKOptions(restarts=0))
         self.seed = seed
         self._vmax = env.spec.max_velocity
@@ -131,7 +152,7 @@ class ScriptedExpert:
         goal = obj.lower[i] + (self.target_fraction if task.direction > 0 else 1.0 - self.target_fraction) * span
         if push:
             goal = obj.lower[i] - 0.005  # the panel is pushed just past its stop
-        approach, manipulation, retreat, keyposes, opening = self._plan(handle, joint, q_now, goal, push)
+        approach, manipulation, retreat, keyposes, opening = self._plan(handle, joint, q_now, goal, push, self._stays(i, task.direction))
         return ExpertPlan(task, "push" if push else "grasp", handle, i, float(goal), opening, approach, manipulation, retreat, keyposes)
 
     def reach(self, plan: "ExpertPlan") -> None:
@@ -163,17 +184,47 @@ class ScriptedExpert:
                 return h
         raise PlanningError(f"no handle annotation for {joint_name} in {self.env.object.folder}/handles.json")
 
-    def _plan(self, handle: Handle, joint, q_now: float, q_goal: float, push: bool):
+    def _stays(self, i: int, direction: int):
+        """A predicate on DoF values of part ``i``: released there, does it stay (or go on towards
+        the goal) rather than fall back? (module docstring)"""
+        obj = self.env.object
+        joint = obj.joints[i]
+        d = obj.dynamics.dynamics[i] if obj.dynamics is not None else None
+        if d is None or d.behaviour == COUNTERBALANCED:
+            return lambda q: True
+        mid = 0.5 * (obj.lower[i] + obj.upper[i])
+        if d.behaviour == BISTABLE:
+            return lambda q: (q - mid) * direction > 0.05 * (obj.upper[i] - obj.lower[i])
+        link = joint.child_link
+        T_axis = joint.get_global_pose().to_transformation_matrix()
+        axis, origin = T_axis[:3, 0], T_axis[:3, 3]
+        com = (link.entity_pose * link.cmass_local_pose).p
+        q_now = float(obj.qpos()[i])
+        weight = np.array([0.0, 0.0, -9.81 * link.mass])
+
+        def stays(q: float) -> bool:
+            c = (_part_motion(joint.type, axis, origin, q - q_now) @ np.r_[com, 1.0])[:3]
+            load = float(axis @ np.cross(c - origin, weight)) if joint.type != "prismatic" else float(axis @ weight)
+            return load * direction >= -d.friction  # pulled back no harder than friction holds
+        return stays
+
+    def _plan(self, handle: Handle, joint, q_now: float, q_goal: float, push: bool, stays=lambda q: True):
         """Approach, manipulation and retreat motions (and the four keyposes) of the first variant
-        that IK follows without jumps and whose free move misses the object. Variants: the
+        that IK follows without jumps, whose free move misses the object and whose manipulation
+        keeps the arm off the object's other parts (and a pushing hand off the pushed part but
+        for its fingertips); it may be cut short only where ``stays``. Variants: the
         approach tilted about the handle's bar axis (where the handle allows it), the fingers
-        either way round, for pushes the contact point beside or below the handle, and several
+        either way round, for pushes the contact point beside or below the handle and the hand
+        turned a quarter about its approach axis, and several
         arm configurations for the start (nearest the current one first)."""
         obj = self.env.object
         link_now = obj.link(handle.link).entity_pose.to_transformation_matrix()
         # the object as obstacle points, minus the handle region the hand is meant to touch
         handle_point = (link_now @ handle.tcp_in_link())[:3, 3]
         self._checker.set_cloud(points_away_from(surface_points(obj.links), handle_point, HANDLE_CLEARANCE))
+        moving = _subtree(obj.link(handle.link))
+        self._sweep_checker.set_cloud(surface_points([link for link in obj.links if link not in moving]))
+        moving_points = surface_points(moving)
         T_axis = joint.get_global_pose().to_transformation_matrix()
         axis, origin = T_axis[:3, 0], T_axis[:3, 3]
         if push:
@@ -181,23 +232,27 @@ class ScriptedExpert:
             # pushing a handle, fingers slip over it and hook it on the way back
             side = handle.span / 2 + 0.025
             offsets = [(side, 0.0), (-side, 0.0), (0.0, 0.03), (0.0, -0.03)]
+            spins = (0.0, np.pi / 2)  # closed fingers push the same either way round: turned, the hand is narrow vertically
             required = None
             travel = self.push_standoff + (q_now - q_goal)
             moves = [_part_motion("prismatic", axis, origin, -d) for d in np.linspace(0.0, travel, int(np.ceil(travel / 0.01)) + 1)]
         else:
-            offsets = [None]
+            offsets, spins = [None], (0.0,)
             qs = _dof_path(joint.type, q_now, q_goal)
             moves = [_part_motion(joint.type, axis, origin, q - q_now) for q in qs]
             # where the arm cannot follow the whole way, going this far still moves the part enough
             enough = np.abs(qs - q_now) >= MIN_PROGRESS * float(joint.limit[0][1] - joint.limit[0][0])
-            required = int(np.argmax(enough)) + 1 if enough[-1] else None
-        errors = []
+            enough &= np.array([stays(float(q)) for q in qs])
+            required = int(np.argmax(enough)) + 1 if enough.any() else None
+        errors, brushing = [], None
         for rx, ry in np.deg2rad(TILTS.get(handle.kind, [(0, 0)])):
             for flip in (np.eye(4), FLIP):
-                for offset in offsets:
+                for offset, spin in ((o, a) for o in offsets for a in spins):
                     grasp = link_now @ handle.tcp_in_link() @ _rotate("x", rx) @ _rotate("y", ry) @ flip
                     if offset is not None:  # p1: standing off the contact point on the panel
-                        grasp = grasp @ _translate(offset[0], offset[1], handle.depth - self.push_standoff)
+                        grasp = grasp @ _translate(offset[0], offset[1], handle.depth - self.push_standoff) @ _rotate("z", spin)
+                        touch = (grasp @ _translate(0, 0, self.push_standoff))[:3, 3]
+                        self._part_checker.set_cloud(points_away_from(moving_points, touch, PUSH_CONTACT))
                     path = [move @ grasp for move in moves]
                     pre = grasp @ _translate(0, 0, -self.approach_distance)
                     # start the straight approach farther back when the arm can get there
@@ -222,8 +277,24 @@ class ScriptedExpert:
                                     (MANIPULATE, manipulation.poses[-1], True)]
                         # a steeply tilted hand opens less: its lower finger would hit the panel
                         opening = 1.0 if max(abs(rx), abs(ry)) < np.deg2rad(30) else TILTED_OPENING
-                        return approach, manipulation, retreat, keyposes, opening
+                        found = (approach, manipulation, retreat, keyposes, opening)
+                        if self._brushes(manipulation, offset is not None):
+                            brushing = brushing or found
+                            errors.append("the hand brushes another part, or the pushed part beyond its fingertips")
+                            continue
+                        return found
+        if brushing is not None:
+            return brushing
         raise PlanningError(f"{len(errors)} variants failed, e.g. {errors[0] if errors else 'no IK solution for any start pose'}")
+
+    def _brushes(self, manipulation: "Motion", push: bool) -> bool:
+        """Does the manipulation sweep the arm through another part, or (a push) touch the pushed
+        part with more than its fingertips? At first touch the hand meets the pushed part as it
+        will all the way, so that one configuration tells."""
+        if any(self._sweep_checker.check(q) is not None for q in manipulation.joints[1:]):
+            return True
+        k = min(len(manipulation.joints) - 1, int(round(self.push_standoff / 0.01)))
+        return push and self._part_checker.check(manipulation.joints[k]) is not None
 
     def _regrasped(self, joint, i: int, q_goal: float, planned: "Motion") -> "Motion":
         """The manipulation re-planned from the part's and hand's actual poses after the grasp
@@ -335,6 +406,16 @@ class ExpertPlan:
     manipulation: Motion  # p1 -> p2
     retreat: Motion
     keyposes: list[tuple[int, np.ndarray, bool]]
+
+
+def _subtree(link) -> list:
+    """A link and every link it carries."""
+    out, stack = [], [link]
+    while stack:
+        current = stack.pop()
+        out.append(current)
+        stack.extend(current.children)
+    return out
 
 
 def _line(A: np.ndarray, B: np.ndarray, step: float = 0.01) -> list[np.ndarray]:

@@ -4,9 +4,20 @@ Categories follow the paper: six training categories (seen instances 0-7, unseen
 8-15) and three held-out categories (instances 0-7), plus the real robot's three-drawer shelf.
 An instance is generated from a seed derived from (category, instance), so every process
 builds the same object; the generated folder is cached on disk in PartNet-Mobility layout.
+
+Instance ``i`` has structure ``LAYOUTS[category][i mod n]`` (at least four per category).
+No two instances are near-duplicates: two instances of a category are near-duplicates when
+they have the same structure signature (layout, and each movable part's joint type, part
+kind and handle kind, in order) and their sizes differ by less than
+``NEAR_DUPLICATE_DISTANCE`` (root mean square over the recipe's sizes, each normalised to the
+range it is drawn from, so 0.15 is 15 % of the ranges on average). An instance that would be a
+near-duplicate of an earlier one is redrawn from the next seed of its own sequence
+(``instance_seed`` and then crc32 of ``<object_id>#<k>``), so the catalogue stays
+deterministic.
 """
 from __future__ import annotations
 
+import copy
 import os
 import shutil
 import tempfile
@@ -15,8 +26,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .categories import RECIPES
+from .categories import LAYOUTS, RECIPES
 from .model import FORMAT_VERSION, ObjectModel, read_meta
+
+NEAR_DUPLICATE_DISTANCE = 0.15
+MAX_REDRAWS = 50
 
 TRAIN_CATEGORIES = ("faucet", "table", "storage_furniture", "door", "refrigerator", "switch")
 HELDOUT_CATEGORIES = ("window", "box", "safe")
@@ -62,15 +76,55 @@ def instance_seed(category: str, instance: int) -> int:
     return zlib.crc32(object_id(category, instance).encode())
 
 
+def structure_signature(model: ObjectModel) -> tuple:
+    """What makes two instances the same structure: the layout and, per movable part in order,
+    its joint type, part kind and handle kind."""
+    handle_kind = {h.joint: h.kind for h in model.handles}
+    parts = tuple((j.type, j.semantic, handle_kind.get(j.name, "")) for j in model.movable_joints())
+    return (model.params.get("layout", ""), parts)
+
+
+def size_distance(a: ObjectModel, b: ObjectModel) -> float:
+    """Root mean square difference of two instances' normalised sizes (``params["dims"]``)."""
+    da, db = a.params.get("dims", {}), b.params.get("dims", {})
+    keys = sorted(set(da) & set(db))
+    if not keys:
+        return 0.0
+    return float(np.sqrt(np.mean([(da[k] - db[k]) ** 2 for k in keys])))
+
+
+def near_duplicates(a: ObjectModel, b: ObjectModel) -> bool:
+    """The catalogue's rule (module docstring): same structure signature and sizes closer than
+    ``NEAR_DUPLICATE_DISTANCE``."""
+    return structure_signature(a) == structure_signature(b) and size_distance(a, b) < NEAR_DUPLICATE_DISTANCE
+
+
+_MODELS: dict[tuple[str, int], ObjectModel] = {}
+
+
 def generate(category: str, instance: int) -> ObjectModel:
     """The object model of one instance (not written to disk)."""
     _check_category(category)
     if instance < 0:
         raise ValueError(f"instance must be >= 0, got {instance}")
-    rng = np.random.default_rng(instance_seed(category, instance))
-    model = RECIPES[category](rng, object_id(category, instance))
-    model.params.update(instance=int(instance), seed=instance_seed(category, instance))
-    return model
+    for i in range(instance + 1):  # every earlier instance first: the near-duplicate rule looks back
+        if (category, i) not in _MODELS:
+            _MODELS[(category, i)] = _draw(category, i)
+    return copy.deepcopy(_MODELS[(category, instance)])
+
+
+def _draw(category: str, instance: int) -> ObjectModel:
+    layouts = LAYOUTS[category]
+    layout = layouts[instance % len(layouts)]
+    earlier = [_MODELS[(category, i)] for i in range(instance % len(layouts), instance, len(layouts))]
+    oid = object_id(category, instance)
+    for attempt in range(MAX_REDRAWS):
+        seed = instance_seed(category, instance) if attempt == 0 else zlib.crc32(f"{oid}#{attempt}".encode())
+        model = RECIPES[category](np.random.default_rng(seed), oid, layout)
+        if not any(near_duplicates(model, other) for other in earlier):
+            model.params.update(instance=int(instance), seed=int(seed))
+            return model
+    raise RuntimeError(f"{oid}: no draw in {MAX_REDRAWS} seeds differs from the earlier {layout} instances")
 
 
 def default_cache_dir() -> Path:

@@ -32,7 +32,7 @@ Vec3 = tuple[float, float, float]
 RGBA = tuple[float, float, float, float]
 
 # Version of the generator's output: bump it to invalidate cached object folders.
-FORMAT_VERSION = 7
+FORMAT_VERSION = 12
 
 
 @dataclass(frozen=True)
@@ -130,7 +130,7 @@ class ObjectModel:
 
     def to_urdf(self, mesh_files: dict[tuple[str, int], str] | None = None) -> str:
         """URDF text; shapes listed in ``mesh_files`` reference that OBJ file instead of a primitive
-        (``mesh`` shapes must be listed: they have no primitive)."""
+        (``mesh`` shapes, having no primitive, always reference theirs: :func:`mesh_path`)."""
         lines = ['<?xml version="1.0"?>', f"<robot name={quoteattr(self.object_id)}>"]
         for link in self.links:
             lines.append(f'  <link name="{link.name}">')
@@ -138,6 +138,8 @@ class ObjectModel:
                 lines.append(_inertial_xml(link))
             for i, s in enumerate(link.shapes):
                 mesh = mesh_files.get((link.name, i)) if mesh_files else None
+                if mesh is None and s.kind == "mesh":
+                    mesh = mesh_path(link.name, i)
                 geometry = _geometry_xml(s, mesh)
                 origin = f'<origin xyz="{_fmt(s.xyz if mesh is None else (0, 0, 0))}" rpy="{_fmt(s.rpy if mesh is None else (0, 0, 0))}"/>'
                 lines.append(
@@ -167,7 +169,7 @@ class ObjectModel:
         for link in self.links:
             for i, s in enumerate(link.shapes):
                 if meshes or s.kind == "mesh":
-                    rel = f"textured_objs/{link.name}-{i}.obj"
+                    rel = mesh_path(link.name, i)
                     (folder / "textured_objs").mkdir(exist_ok=True)
                     _write_obj(folder / rel, *_shape_mesh(s))
                     mesh_files[(link.name, i)] = rel
@@ -181,6 +183,11 @@ class ObjectModel:
         (folder / "meta.json").write_text(json.dumps(meta, indent=1, default=float) + "\n")
         (folder / "handles.json").write_text(json.dumps({"handles": [asdict(h) for h in self.handles]}, indent=1) + "\n")
         return folder
+
+
+def mesh_path(link: str, index: int) -> str:
+    """Where a folder keeps the OBJ of a link's ``index``-th shape (relative to the folder)."""
+    return f"textured_objs/{link}-{index}.obj"
 
 
 def read_handles(folder: Path) -> list[Handle]:
