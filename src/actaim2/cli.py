@@ -16,10 +16,12 @@ COMMANDS: dict[tuple[str, ...], tuple[str, str]] = {
     ("bench", "perception"): ("actaim2.bench.perception", "clouds-in to views-out latency, in-process and through the node"),
     ("bench", "bags"): ("actaim2.bench.bags", "bag_recorder MB/s, CPU and loss under a ring5 replay; bag_player timing error"),
     ("bench", "control"): ("actaim2.bench.control", "IK success and latency, Ruckig time, straight-line deviation"),
+    ("bench", "models"): ("actaim2.bench.models_cli", "selector sample and predictor latency, training step, parameters"),
     ("expert",): ("actaim2.rollout.expert_eval", "scripted expert success per category (proves the objects are manipulable)"),
     ("render",): ("actaim2.perception.render_cli", "render a bag or saved cloud into orthographic PNG views"),
     ("collect",): ("actaim2.data.collect_cli", "self-supervised data collection in simulation"),
     ("stats",): ("actaim2.data.stats_cli", "statistics of a collected dataset"),
+    ("train",): ("actaim2.train.train_cli", "train the policy: mode selector, action predictor, joint phase"),
     ("launch",): ("actaim2.launch.cli", "start a node graph (sim_panda_ring5, sim_kinova_azure, real_kinova_azure) as processes"),
 }
 

@@ -106,6 +106,11 @@ def holdout_split(ids: list[str], fraction: float, seed: int = 0) -> tuple[np.nd
     return np.flatnonzero(~val), np.flatnonzero(val)
 
 
+def cache_folder(root: str | Path, splits: list[str], perception_digest: str) -> Path:
+    """Where the views of (this dataset's content, these splits, this perception configuration) are cached."""
+    return Path(root) / CACHE_DIR / f"views-{dataset_digest(root)}-{perception_digest}-{'+'.join(sorted(splits))}"
+
+
 def build_cache(root: str | Path, perception, splits: list[str], perception_digest: str,
                 show_progress: bool = True) -> Path:
     """Render and store the views of the visually successful trajectories of ``splits``; returns the cache folder.
@@ -117,7 +122,7 @@ def build_cache(root: str | Path, perception, splits: list[str], perception_dige
     from actaim2.data.torch_dataset import KeyframeDataset, ModeDataset
 
     root = Path(root)
-    folder = root / CACHE_DIR / f"views-{dataset_digest(root)}-{perception_digest}-{'+'.join(sorted(splits))}"
+    folder = cache_folder(root, splits, perception_digest)
     if (folder / "done.json").exists():
         return folder
     folder.mkdir(parents=True, exist_ok=True)

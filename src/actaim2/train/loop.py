@@ -12,8 +12,9 @@ Baseline selectors (cvae, vqvae) run "selector" then "joint" from a Goal-RVT pre
 
 Optimiser: AdamW, linear warm-up then cosine decay per phase, gradient clipping. Every
 ``checkpoint_minutes`` and at the end of each phase a resumable checkpoint ``<out>/train_state``
-is written (weights, optimiser moments, RNG state, phase and step); ``resume=True`` continues
-from it bit-for-bit in the data order. The final models go to ``<out>/policy`` (weights only).
+is written (weights, optimiser moments, RNG state, phase and step); :meth:`Trainer.resume`
+continues from it exactly (tests/train/test_checkpoint.py). The final models go to
+``<out>/policy`` (weights only), the predictor after its pretraining to ``<out>/goal_rvt``.
 Rank 0 shows progress bars, writes TensorBoard scalars (``<out>/tensorboard``) and
 ``<out>/history.jsonl`` (per-epoch training and validation losses, for curves).
 """
@@ -44,6 +45,7 @@ from actaim2.train.elbo import selector_loss
 
 STATE = "train_state"
 POLICY = "policy"
+GOAL_RVT = "goal_rvt"  # the predictor right after its pretraining on true z (plus the z statistics it reads)
 
 
 def learning_rate(step: int, total: int, base: float, warmup_fraction: float, final_fraction: float) -> float:
@@ -75,8 +77,12 @@ class Trainer:
         self.device = ctx.device
         resolution = int(train.init_views.shape[-1])
         z_dim = int(train.z.shape[1])
-        self.selector_config = type(config.selector).from_dict({**config.selector.to_dict(), "z_dim": z_dim})
-        self.predictor_config = PredictorConfig.from_json({**config.predictor, "embedding_dim": z_dim, "image_size": resolution})
+        n_views, channels = int(train.init_views.shape[1]), int(train.init_views.shape[2])
+        selector = config.selector.to_dict()
+        selector.update(z_dim=z_dim, obs={**selector["obs"], "views": n_views, "in_channels": channels})
+        self.selector_config = type(config.selector).from_dict(selector)
+        self.predictor_config = PredictorConfig.from_json({**config.predictor, "embedding_dim": z_dim, "image_size": resolution,
+                                                           "views": n_views, "in_channels": channels})
         torch.manual_seed(config.seed)
         self.selector: ModeSelector = build_selector(self.selector_config).to(self.device)
         self.predictor = ActionPredictor(self.predictor_config).to(self.device)
@@ -175,6 +181,8 @@ class Trainer:
             self.phase_index, self.step, self.optimizer_state = index + 1, 0, None
             self.lineage["phases_done"].append(phase)
             self.save_state(None, None)
+            if phase == "predictor" and self.ctx.is_main:
+                checkpoint.save(self.out / GOAL_RVT, checkpoint.policy_tensors(self.selector, self.predictor), self._meta())
         if self.ctx.is_main:
             self.save_policy()
         if self.writer is not None:

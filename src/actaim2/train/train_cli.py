@@ -1,0 +1,95 @@
+"""`actaim2 train`: train the policy (selector, predictor, joint) on a collected dataset.
+
+Examples:
+    actaim2 train --data data/ds --out runs/cpu                       # CGMVAE + predictor, CPU default config
+    actaim2 train --data data/ds --out runs/cpu --resume              # continue an interrupted run
+    actaim2 train --data data/ds --out runs/cvae --selector cvae --phases selector joint \\
+        --init-from runs/cpu/goal_rvt                                 # a baseline on the Goal-RVT predictor
+    torchrun --nproc-per-node 2 -m actaim2.cli train --data data/ds --out runs/ddp   # DDP (gloo on CPU)
+
+Views of the visually successful ``train_seen`` trajectories are rendered once and cached in
+the dataset folder; 10% of those trajectories (by id hash) are held out for validation curves.
+After the predictor phase its weights are also saved as ``<out>/goal_rvt`` (the Goal-RVT
+baseline: the predictor fed the true z).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--data", type=Path, required=True, help="dataset folder (actaim2 collect)")
+    parser.add_argument("--out", type=Path, required=True, help="run folder: checkpoints, history.jsonl, tensorboard/")
+    parser.add_argument("--config", default="cpu_default", help="training YAML, or a bundled name (cpu_default, gpu_rvt)")
+    parser.add_argument("--perception", default="ring5", help="perception configuration: rig name or YAML")
+    parser.add_argument("--selector", choices=["cgmvae", "cvae", "vqvae"], help="override the config's selector kind")
+    parser.add_argument("--phases", nargs="+", choices=["selector", "predictor", "joint"], help="override the config's phases")
+    parser.add_argument("--init-from", type=Path, help="start from this policy checkpoint (e.g. <run>/goal_rvt)")
+    parser.add_argument("--resume", action="store_true", help="continue from <out>/train_state")
+    parser.add_argument("--device", choices=["auto", "cpu", "cuda"], help="override the config's device")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+def _check_dataset(info: dict, perception) -> None:
+    """The dataset's capture settings must be the training run's (views are recomputed from its pictures)."""
+    from actaim2.perception.config import CAPTURE_FIELDS, check_compatible
+
+    if "perception" in info:
+        check_compatible(info["perception"], perception, CAPTURE_FIELDS, ("dataset", "training run"))
+    elif info.get("rig") not in (None, perception.rig):
+        raise ValueError(f"the dataset was collected with rig {info['rig']!r}, the perception configuration is for {perception.rig!r}")
+
+
+def main(args: argparse.Namespace) -> int:
+    import dataclasses
+
+    import torch.distributed as dist
+
+    from actaim2.data.splits import TRAIN
+    from actaim2.data.storage import DatasetReader
+    from actaim2.models.view_geometry import CubePlacement
+    from actaim2.perception.config import load_perception_config
+    from actaim2.perception.pipeline import Perception
+    from actaim2.perception.self_filter import RobotSelfFilter
+    from actaim2.robots import load_robot_spec
+    from actaim2.train.checkpoint import perception_record
+    from actaim2.train.config import load_config
+    from actaim2.train.data import build_cache, cache_folder, dataset_digest, holdout_split, load_cache
+    from actaim2.train.distributed import init_distributed, shutdown
+    from actaim2.train.loop import Trainer
+
+    config = load_config(args.config)
+    changes = {}
+    if args.selector:
+        changes["selector"] = dataclasses.replace(config.selector, kind=args.selector)
+    if args.phases:
+        changes["phases"] = tuple(args.phases)
+    if args.device:
+        changes["device"] = args.device
+    config = dataclasses.replace(config, **changes)
+    ctx = init_distributed(config.device)
+    perception_config = load_perception_config(args.perception)
+    info = DatasetReader(args.data).info
+    _check_dataset(info, perception_config)
+    record = perception_record(perception_config)
+    if ctx.is_main:  # one rank renders the cache, the others wait for it
+        self_filter = RobotSelfFilter(load_robot_spec(info.get("robot", "panda")), perception_config.self_filter_margin) \
+            if perception_config.remove_robot_views else None
+        build_cache(args.data, Perception(perception_config, self_filter), [TRAIN], record["digest"], not args.no_progress)
+    if ctx.distributed:
+        dist.barrier()
+    placement = CubePlacement(tuple(perception_config.center), float(perception_config.half_extent))
+    data = load_cache(cache_folder(args.data, [TRAIN], record["digest"]), placement)
+    train_rows, val_rows = holdout_split(data.ids, config.validation_fraction, config.seed)
+    trainer = Trainer(config, data.subset(train_rows), data.subset(val_rows), placement, record, dataset_digest(args.data),
+                      args.out, ctx, args.init_from, show_progress=not args.no_progress)
+    if args.resume and not trainer.resume():
+        print(f"no {args.out}/train_state to resume from: starting afresh")
+    results = trainer.run()
+    if ctx.is_main:
+        print(json.dumps({phase: {"steps": r.steps, "seconds": round(r.seconds, 1), "last": r.last_metrics}
+                          for phase, r in results.items()}, indent=2))
+    shutdown()
+    return 0
