@@ -32,8 +32,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="panda", help="robot preset or YAML (actaim2.robots)")
     parser.add_argument("--perception", default="ring5",
                         help="perception configuration: rig name (ring5, azure_kinect) or YAML; fixes the cameras, cube and render path")
-    parser.add_argument("--render-path", default="", choices=["", "sapien", "raycast"],
-                        help="override the configuration's render path; raycast = collect ray-cast pictures on purpose")
+    parser.add_argument("--render-path", choices=["sapien", "raycast"],
+                        help="override the configuration's render path (sapien); raycast = collect ray-cast pictures on purpose")
     parser.add_argument("--allow-raycast", action="store_true",
                         help="without a Vulkan device, collect ray-cast pictures instead of refusing (logged, recorded in dataset.json)")
     parser.add_argument("--encoder", type=Path, help="a saved encoder E (ImageEncoder.save); default: train one on the data")
@@ -95,7 +95,7 @@ def main(args: argparse.Namespace) -> int:
             return 2
     config = CollectConfig(
         out=args.out, objects=tuple(objects), per_object={"random": args.random, "grasp": args.grasp, "gmm": args.gmm},
-        workers=args.workers, seed=args.seed, robot=args.robot, perception=args.perception, render_path=args.render_path,
+        workers=args.workers, seed=args.seed, robot=args.robot, perception=args.perception, render_path=args.render_path or "",
         allow_raycast=args.allow_raycast, rounds=args.rounds,
         encoder=encoder, encoder_steps=args.encoder_steps, show_progress=not args.no_progress,
     )
