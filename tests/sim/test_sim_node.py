@@ -225,13 +225,17 @@ def test_jtc_topic_moves_the_arm(kinect_node, ros_node, arm_client):
 
 
 def test_gripper_reaches_or_stalls(kinect_node, ros_node):
+    """Positions are gap widths (m between the fingers), as the message says."""
     client = ActionClient(ros_node, GripperCommand, "/gripper_controller/gripper_cmd")
     assert client.wait_for_server(timeout_sec=60.0)
+    joints = Inbox(ros_node, JointState, "/joint_states")
     goal = GripperCommand.Goal()
     goal.command.position = 0.02
     accepted, result = send(client, goal)
     assert accepted and result.reached_goal and not result.stalled
     assert result.position == pytest.approx(0.02, abs=0.002)
+    finger = SPEC.gripper_joints[0]  # each Panda finger moves half the gap
+    assert wait_for(lambda: any(abs(dict(zip(m.name, m.position))[finger] - 0.01) < 0.001 for m in joints.messages[-5:]), 5.0)
     # beyond the closed limit: the fingers stop at 0 and never reach -0.01 -> stalled = success
     goal.command.position = -0.01
     accepted, result = send(client, goal)
@@ -281,7 +285,8 @@ def test_gripper_closed_on_a_handle_stalls_with_default_parameters(kinect_node, 
     assert accepted and result.error_code == FollowJointTrajectory.Result.SUCCESSFUL, result.error_string
 
     goal = GripperCommand.Goal()
-    goal.command.position = SPEC.gripper_closed
+    goal.command.position = 0.0  # gap width: fully closed
+    goal.command.max_effort = 25.0  # N: the squeeze on the handle
     sent = gripper.send_goal_async(goal)
     assert wait_for(sent.done, 30.0) and sent.result().accepted
     outcome = sent.result().get_result_async()
@@ -289,7 +294,8 @@ def test_gripper_closed_on_a_handle_stalls_with_default_parameters(kinect_node, 
     assert outcome.result().status == GoalStatus.STATUS_SUCCEEDED
     result = outcome.result().result
     assert result.stalled and not result.reached_goal
-    assert result.position > SPEC.gripper_closed + 0.002, result.position  # the handle is between the fingers
+    assert 0.01 < result.position < 0.03, result.position  # the gap: the handle's bar is between the fingers
+    assert result.effort == pytest.approx(25.0, rel=0.05)  # squeezing with max_effort, not the default 70 N
 
 
 def test_reset_scene_answers_bad_requests_and_reports_dof_limits(kinect_node, ros_node):
