@@ -32,16 +32,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
-def _check_dataset(info: dict, perception) -> None:
-    """The dataset's capture settings must be the training run's (views are recomputed from its pictures)."""
-    from actaim2.perception.config import CAPTURE_FIELDS, check_compatible
-
-    if "perception" in info:
-        check_compatible(info["perception"], perception, CAPTURE_FIELDS, ("dataset", "training run"))
-    elif info.get("rig") not in (None, perception.rig):
-        raise ValueError(f"the dataset was collected with rig {info['rig']!r}, the perception configuration is for {perception.rig!r}")
-
-
 def main(args: argparse.Namespace) -> int:
     import dataclasses
 
@@ -71,8 +61,7 @@ def main(args: argparse.Namespace) -> int:
     config = dataclasses.replace(config, **changes)
     ctx = init_distributed(config.device)
     perception_config = load_perception_config(args.perception)
-    info = DatasetReader(args.data).info
-    _check_dataset(info, perception_config)
+    info = DatasetReader(args.data).info  # its perception capture fields are checked by the torch datasets
     record = perception_record(perception_config)
     if ctx.is_main:  # one rank renders the cache, the others wait for it
         self_filter = RobotSelfFilter(load_robot_spec(info.get("robot", "panda")), perception_config.self_filter_margin) \

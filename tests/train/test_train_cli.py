@@ -1,0 +1,96 @@
+"""`actaim2 train` end to end on a small stored dataset: view cache, three phases, checkpoints, resume.
+
+The dataset holds ray-cast pictures of a box on a floor (five ring5 cameras, robot absent),
+written with the real storage format, visual labels and task embeddings; the run uses a tiny
+YAML configuration (a few steps per phase), so it checks the plumbing, not learning.
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import yaml
+
+from actaim2.cli import main as cli_main
+from actaim2.data.actions import ActionSequence
+from actaim2.data.labelling import EMBEDDINGS_FILE
+from actaim2.data.storage import DatasetWriter, encode_trajectory, write_labels
+from actaim2.data.trajectory import OBSERVATION_NAMES, CameraImage, ObjectState, Trajectory
+from actaim2.perception.config import capture_part, load_perception_config
+from actaim2.perception.synthetic import RaycastScene, box_mesh
+from actaim2.sim.cameras import ring5
+from actaim2.train.checkpoint import load_policy, perception_record
+
+TARGET = np.array([0.75, 0.0, 0.2])
+Z_DIM = 10
+
+
+def _pictures(shift: float) -> dict[str, CameraImage]:
+    scene = RaycastScene([(box_mesh([0.75, 0.0, -0.01], [1.2, 1.2, 0.02]), (90, 90, 100)),
+                          (box_mesh(TARGET + [shift, 0.0, 0.0], [0.3, 0.4, 0.4]), (160, 110, 60))])
+    out = {}
+    for cam in ring5(TARGET, width=80, height=60):
+        xyz, rgb = scene.capture(cam.T_world_optical, cam.width, cam.height, np.rad2deg(2 * np.arctan(cam.width / (2 * cam.fx))))
+        out[cam.name] = CameraImage(rgb, np.nan_to_num(xyz[..., 2]).astype(np.float32), cam.K, cam.T_world_optical)
+    return out
+
+
+def _trajectory(i: int, pictures: dict) -> Trajectory:
+    side = 1.0 if i % 2 else -1.0
+    action = ActionSequence(p1=TARGET + [-0.2, 0.1 * side, 0.1], p2=TARGET + [-0.3, 0.1 * side, 0.1], R0=np.eye(3), start_distance=0.1)
+    return Trajectory(
+        id=f"box-random-{i:05d}", object_id="storage_furniture_000", category="storage_furniture", instance=0,
+        split="train_seen", sampler="random", seed=i, keyposes=action.keyposes(),
+        observations={name: pictures[0.0] for name in OBSERVATION_NAMES} | {"final": pictures[0.1 * side]},
+        robot_joints={name: {"panda_joint1": 0.0} for name in OBSERVATION_NAMES},
+        object_state=ObjectState(["door"], np.array([0.0]), np.array([1.0]), np.array([0.0]), np.array([0.5])),
+        info={},
+    )
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    root = tmp_path_factory.mktemp("ds")
+    pictures = {s: _pictures(s) for s in (0.0, 0.1, -0.1)}
+    ids = []
+    with DatasetWriter(root, {"perception": capture_part(load_perception_config("ring5")), "robot": "panda"}) as writer:
+        for i in range(12):
+            ids.append(writer.append(encode_trajectory(_trajectory(i, pictures)))["id"])
+    write_labels(root, [{"id": t, "score": 1.0, "change": 1.0, "success": i != 5} for i, t in enumerate(ids)])  # one failure
+    rng = np.random.default_rng(0)
+    np.savez(root / EMBEDDINGS_FILE, ids=np.array(ids), z=rng.normal(size=(len(ids), Z_DIM)).astype(np.float32))
+    return root
+
+
+def _config(tmp_path) -> str:
+    path = tmp_path / "tiny.yaml"
+    step = {"epochs": 2, "batch_size": 4, "lr": 1.0e-3}
+    path.write_text(yaml.safe_dump({
+        "phases": ["selector", "predictor", "joint"], "device": "cpu", "augment": True, "validation_fraction": 0.25,
+        "selector": {"z_tokens": 2, "width": 32, "blocks": 1, "decoder_layers": 1, "latent_dim": 8, "y_dim": 8,
+                     "obs": {"input_resolution": 16, "widths": [8, 16], "token_dim": 16}},
+        "predictor": {"patch": 16, "width": 32, "layers_within": 1, "layers_across": 1, "heads": 2},
+        "selector_phase": step, "predictor_phase": step, "joint_phase": step,
+    }))
+    return str(path)
+
+
+def test_train_command_runs_all_phases_and_writes_loadable_checkpoints(dataset, tmp_path):
+    out = tmp_path / "run"
+    args = ["train", "--data", str(dataset), "--out", str(out), "--config", _config(tmp_path), "--no-progress"]
+    assert cli_main(args) == 0
+    caches = list((dataset / "cache").iterdir())
+    assert len(caches) == 1 and len(json.loads((caches[0] / "done.json").read_text())["ids"]) == 11  # successes only
+    record = perception_record(load_perception_config("ring5"))
+    policy = load_policy(out / "policy", record)
+    assert policy.meta["lineage"]["phases_done"] == ["selector", "predictor", "joint"]
+    assert policy.predictor.config.image_size == 128 and policy.selector.config.z_dim == Z_DIM
+    assert load_policy(out / "goal_rvt", record).predictor is not None
+    history = [json.loads(line) for line in (out / "history.jsonl").read_text().splitlines()]
+    assert {h["phase"] for h in history} == {"selector", "predictor", "joint"}
+    assert all(h["val"] is not None and np.isfinite(h["val"]["loss"]) for h in history)
+    assert any((out / "tensorboard").iterdir())
+    # A finished run resumes to nothing left to do, and the cache is reused.
+    assert cli_main(args + ["--resume"]) == 0
+    assert len(list((dataset / "cache").iterdir())) == 1
