@@ -171,8 +171,8 @@ class ScriptedExpert:
         self.execute_motion(motion, self.manipulation_speed)
 
     def release(self, plan: "ExpertPlan") -> None:
-        """Let go and back off along the approach axis (a pushing hand backs off closed: opening
-        fingers could hook the handle)."""
+        """Let go and back off along the approach axis (a pushing hand backs off closed, straight
+        back the way it pushed: opening fingers could hook the handle)."""
         if plan.strategy == "grasp":
             self.env.grip(closed=False, opening=plan.opening)
         self.execute_motion(plan.retreat, self.speed)
@@ -268,7 +268,11 @@ class ScriptedExpert:
                         try:
                             approach = self._follow(_line(start, grasp), q_start)
                             manipulation = self._follow(path, approach.joints[-1], required)
-                            back = [manipulation.poses[-1] @ _translate(0, 0, -d) for d in np.linspace(0.0, self.approach_distance, 5)]
+                            # back off along the approach axis; a pushing hand straight back the way it pushed
+                            # (a tilted hand backing off along its own axis can hook the handle beside it)
+                            end = manipulation.poses[-1]
+                            back = [_part_motion("prismatic", axis, origin, d) @ end if push else end @ _translate(0, 0, -d)
+                                    for d in np.linspace(0.0, self.approach_distance, 5)]
                             retreat = self._follow(back, manipulation.joints[-1])
                         except PlanningError as exc:
                             errors.append(str(exc))

@@ -32,6 +32,7 @@ from .physics_table import BISTABLE, COUNTERBALANCED, JointDynamics, behaviour, 
 
 V_CREEP = 1e-4  # m/s or rad/s: the fastest a joint drifts under a load just below its friction
 MIN_FRICTION = 1e-3  # N or N m: the drive gain's floor, so a frictionless joint is still damped
+LIMIT_TOLERANCE = 0.02  # relative change of a friction clamp worth passing on to PhysX
 
 
 @dataclass
@@ -41,6 +42,7 @@ class _Driven:
     dynamics: JointDynamics
     lower: float
     upper: float
+    limit: float = 0.0  # the force clamp last set (friction joints)
 
 
 class ObjectDynamics:
@@ -79,7 +81,9 @@ class ObjectDynamics:
         for v in self._viscous:
             d = v.dynamics
             limit = max(d.friction, MIN_FRICTION) + d.damping * abs(float(qvel[v.index]))
-            v.joint.set_drive_property(0.0, max(d.friction, MIN_FRICTION) / V_CREEP, force_limit=limit)
+            if abs(limit - v.limit) > LIMIT_TOLERANCE * v.limit:  # a part at rest costs no PhysX call
+                v.joint.set_drive_property(0.0, max(d.friction, MIN_FRICTION) / V_CREEP, force_limit=limit)
+                v.limit = limit
         if self._bistable:
             qpos = self.articulation.get_qpos()
             for b in self._bistable:

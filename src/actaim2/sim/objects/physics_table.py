@@ -176,11 +176,8 @@ MATERIALS: dict[str, Material] = {m.name: m for m in (
                                 "table 5-3a)"),
     Material("particleboard", 650.0, "EN 312 particleboard, 600-750 kg/m^3 typical"),
     Material("mdf", 750.0, "medium-density fibreboard, 700-800 kg/m^3 typical (EN 622-5)"),
-    Material("steel", 7850.0, "EN 1991-1-1 Annex A, table A.4: steel 77.0-78.5 kN/m^3"),
-    Material("stainless_steel", 7900.0, "EN 10088-1: austenitic stainless steel 7.9 g/cm^3"),
     Material("brass", 8500.0, "CW617N / C37700 forging brass, 8.4-8.5 g/cm^3"),
     Material("zinc_alloy", 6600.0, "Zamak 3 (ASTM B86) die-cast handles, 6.6 g/cm^3"),
-    Material("aluminium", 2700.0, "EN 1991-1-1 table A.4: aluminium 27 kN/m^3"),
     Material("abs", 1050.0, "ABS moulding grades 1.03-1.07 g/cm^3"),
     Material("glass", 2500.0, "EN 572-1 soda-lime float glass, 2500 kg/m^3"),
     Material("fridge_door", 180.0, "effective: a foam-filled sheet-steel door; estimate from a typical 5 kg under-counter "
