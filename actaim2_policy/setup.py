@@ -13,6 +13,8 @@ setup(
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/config", glob("config/*.yaml")),
         ("share/" + package_name + "/launch", glob("launch/*.yaml") + glob("launch/*.launch.xml")),
+        # the committed policy checkpoints (safetensors + JSON) that policy_node's `checkpoint` names
+        ("share/" + package_name + "/checkpoints", glob("checkpoints/*.json") + glob("checkpoints/*.safetensors")),
     ],
     install_requires=["setuptools"],
     zip_safe=True,
@@ -24,6 +26,8 @@ setup(
         "console_scripts": [
             "bag_player = actaim2_policy.bag_player:main",
             "bag_recorder = actaim2_policy.bag_recorder:main",
+            "episode_runner = actaim2_policy.episode_runner:main",
+            "policy_node = actaim2_policy.policy_node:main",
         ],
     },
 )

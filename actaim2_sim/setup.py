@@ -22,7 +22,6 @@ setup(
     entry_points={
         "console_scripts": [
             "sim_node = actaim2_sim.sim_node:main",
-            "episode_runner = actaim2_sim.episode_runner:main",
         ],
     },
 )

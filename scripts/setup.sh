@@ -100,6 +100,8 @@ src_hash=$( (for p in "${PACKAGES[@]}"; do d=$p; [ -d "$d" ] || d="compat/$p"; f
 if [ "$(cat install/.actaim2_build.sha256 2>/dev/null)" != "$src_hash" ]; then
   log "colcon build ${PACKAGES[*]}"
   base_paths=(); for p in "${PACKAGES[@]}"; do [ -d "$p" ] && base_paths+=("$p") || base_paths+=("compat/$p"); done
+  # --symlink-install leaves links to deleted source files behind, and setup.py then fails to copy them
+  find build install -xtype l -delete 2>/dev/null || true
   colcon --log-base log build --base-paths "${base_paths[@]}" --symlink-install \
     --event-handlers console_direct- \
     >log/colcon-build.txt 2>&1 || { tail -n 60 log/colcon-build.txt >&2; exit 1; }

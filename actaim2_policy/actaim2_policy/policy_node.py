@@ -1,0 +1,220 @@
+"""policy_node: /sample_mode (mode selector) and /predict_keypose (action predictor) from a checkpoint.
+
+A thin adapter over :class:`actaim2.policy.inference.PolicyModel`: it keeps the latest
+/ortho_views each model accepts (same perception configuration digest as the checkpoint's,
+else refused with the reason), answers the two services from them, stamps every keypose with the
+stamp of the views it used, and publishes the mode in use on /interaction_mode.
+
+Start-up: load and check the checkpoint against the serving perception configuration, warm the
+models up, then create the services and log "policy_node ready", so a client that found the
+services gets answers at full speed. A checkpoint that cannot be loaded does not stop the node:
+every request is answered ``success=false`` with "checkpoint failed to load: <why>", as every
+other bad request (wrong embedding length, NaN, unknown cluster or phase, no views yet, views
+older than ``not_before``) is answered with its reason while the node keeps serving.
+
+Threads: views arrive in their own callback group, so receiving a 2.6 MB message never waits
+for an inference, and the two services share one group (one inference at a time).
+"""
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import numpy as np
+import rclpy
+import torch
+from actaim2_msgs.msg import InteractionMode, OrthoViews
+from actaim2_msgs.srv import PredictKeypose, SampleMode
+from builtin_interfaces.msg import Time
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+from actaim2.perception.config import load_perception_config
+from actaim2.policy.inference import ROLES, PolicyLoadError, PolicyModel
+from actaim2.policy.locate import resolve_checkpoint
+from actaim2.policy.requests import NO_VIEWS, RequestError, check_cluster, check_embedding, check_fresh, check_phase
+from actaim2.policy.views import Views, accept_views
+from actaim2.ros_params import declare_parameters
+from actaim2.runtime import apply_ros_defaults
+
+VIEWS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)  # as fusion_node publishes them
+# The mode in use is state: a recorder that starts later still learns it.
+MODE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+PARAMETERS = {
+    "checkpoint": ("actaim2_ring5", "checkpoint stem (<stem>.json + <stem>.safetensors): a path, or a name looked up in "
+                                    "share/actaim2_policy/checkpoints (the committed checkpoints)"),
+    "perception_config": ("ring5", "the serving perception configuration, as fusion_node's: rig name or PerceptionConfig "
+                                   "YAML; a checkpoint trained under another one is refused, naming the differing fields"),
+    "device": ("auto", "auto (CUDA when present, else CPU) | cpu | cuda"),
+    "torch_threads": (2, "CPU threads for inference"),
+    "views_topic": ("/ortho_views", "views for the mode selector, and for the predictor unless predictor_views_topic is set"),
+    "predictor_views_topic": ("", "views for the action predictor when it was trained with the other robot-filter "
+                                  "setting than the selector (fusion_node's alternate_views_topic); empty = views_topic"),
+}
+
+
+def stamp_ns(stamp: Time) -> int:
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+def stamp_msg(ns: int) -> Time:
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def checkpoint_folders() -> list[Path]:
+    """share/actaim2_policy/checkpoints of the installed package (where setup.py puts the committed ones)."""
+    from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+
+    try:
+        return [Path(get_package_share_directory("actaim2_policy")) / "checkpoints"]
+    except PackageNotFoundError:
+        return []
+
+
+class PolicyNode(Node):
+    def __init__(self) -> None:
+        super().__init__("policy_node")
+        p = declare_parameters(self, PARAMETERS)
+        torch.set_num_threads(int(p["torch_threads"]))
+        self._model: PolicyModel | None = None
+        self._load_error = ""
+        try:
+            serving = load_perception_config(p["perception_config"])
+            stem = resolve_checkpoint(p["checkpoint"], checkpoint_folders())
+            self._model = PolicyModel.load(stem, serving, p["device"])
+            warm = self._model.warm_up()
+        except (PolicyLoadError, FileNotFoundError, ValueError) as exc:
+            self._load_error = f"checkpoint failed to load: {exc}"
+
+        self._lock = threading.Lock()
+        self._views: dict[str, Views | None] = dict.fromkeys(ROLES)
+        self._refusal: dict[str, str] = {}
+        self._topics = {"selector": p["views_topic"], "predictor": p["predictor_views_topic"] or p["views_topic"]}
+        self._last_mode: np.ndarray | None = None
+        self._mode_pub = self.create_publisher(InteractionMode, "/interaction_mode", MODE_QOS)
+        if self._model is not None:
+            views_group = MutuallyExclusiveCallbackGroup()
+            for topic in sorted(set(self._topics.values())):
+                roles = [r for r in ROLES if self._topics[r] == topic]
+                self.create_subscription(OrthoViews, topic, lambda msg, roles=roles: self._on_views(msg, roles), VIEWS_QOS,
+                                         callback_group=views_group)
+        services = MutuallyExclusiveCallbackGroup()
+        self.create_service(SampleMode, "/sample_mode", self._on_sample_mode, callback_group=services)
+        self.create_service(PredictKeypose, "/predict_keypose", self._on_predict_keypose, callback_group=services)
+        if self._model is None:
+            self.get_logger().error(f"{self._load_error}; every request is answered success=false with this reason")
+        else:
+            self.get_logger().info(f"policy_node ready: {self._model.describe()}; warm-up {1000 * warm:.0f} ms; views: "
+                                   f"selector {self._topics['selector']}, predictor {self._topics['predictor']}")
+
+    # -- views ------------------------------------------------------------------------------
+    def _on_views(self, msg: OrthoViews, roles: list[str]) -> None:
+        for role in roles:
+            try:
+                views = accept_views(stamp_ns(msg.header.stamp), msg.height, msg.width, msg.views, msg.channels, msg.data,
+                                     msg.config_digest, self._model.views_config(role))
+            except RequestError as exc:
+                with self._lock:
+                    self._refusal[role] = f"the latest {self._topics[role]} were refused: {exc}"
+                self.get_logger().warning(f"{role}: {exc}", throttle_duration_sec=10.0)
+                continue
+            with self._lock:
+                self._views[role] = views
+                self._refusal.pop(role, None)
+
+    def _views_for(self, role: str) -> Views:
+        with self._lock:
+            views, refusal = self._views[role], self._refusal.get(role)
+        if refusal:
+            raise RequestError(refusal)
+        if views is None:
+            raise RequestError(f"{NO_VIEWS}: nothing received on {self._topics[role]} (is fusion_node running?)")
+        return views
+
+    def _require_model(self) -> PolicyModel:
+        if self._model is None:
+            raise RequestError(self._load_error)
+        return self._model
+
+    # -- services ---------------------------------------------------------------------------
+    def _on_sample_mode(self, request: SampleMode.Request, response: SampleMode.Response) -> SampleMode.Response:
+        try:
+            model = self._require_model()
+            check_cluster(request.cluster, model.clusters)
+            views = self._views_for("selector")
+            sample = model.sample_mode(views, request.cluster, request.seed)
+        except RequestError as exc:
+            return self._refuse(response, str(exc))
+        except Exception as exc:  # noqa: BLE001 - answered and logged: the node must keep serving
+            return self._refuse(response, f"internal error: {type(exc).__name__}: {exc}", error=True)
+        response.success = True
+        response.message = model.describe()
+        response.cluster = sample.cluster
+        response.embedding = sample.eps.tolist()
+        response.cluster_probabilities = sample.probabilities.tolist()
+        response.observation_stamp = stamp_msg(views.stamp_ns)
+        self._publish_mode(views.stamp_ns, sample.cluster, sample.eps)
+        return response
+
+    def _on_predict_keypose(self, request: PredictKeypose.Request,
+                            response: PredictKeypose.Response) -> PredictKeypose.Response:
+        try:
+            model = self._require_model()
+            eps = check_embedding(request.embedding, model.embedding_dim)
+            check_phase(request.phase)
+            views = self._views_for("predictor")
+            check_fresh(views.stamp_ns, stamp_ns(request.not_before))
+            prediction = model.predict_keypose(views, eps, request.phase, request.gripper_closed)
+        except RequestError as exc:
+            return self._refuse(response, str(exc))
+        except Exception as exc:  # noqa: BLE001 - answered and logged: the node must keep serving
+            return self._refuse(response, f"internal error: {type(exc).__name__}: {exc}", error=True)
+        if self._last_mode is None or not np.array_equal(eps, self._last_mode):
+            self._publish_mode(views.stamp_ns, -1, eps)  # a mode /sample_mode did not give: cluster unknown
+        kp, msg = prediction.keypose, response.keypose
+        msg.header.frame_id = "world"
+        msg.header.stamp = stamp_msg(views.stamp_ns)
+        msg.phase, msg.gripper_closed = kp.phase, kp.gripper_closed
+        msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(v) for v in kp.position)
+        q = msg.pose.orientation
+        q.x, q.y, q.z, q.w = (float(v) for v in kp.quat_xyzw)
+        response.success = True
+        response.confidence = prediction.confidence
+        return response
+
+    def _refuse(self, response, reason: str, error: bool = False):
+        response.success = False
+        response.message = reason
+        (self.get_logger().error if error else self.get_logger().warning)(reason, throttle_duration_sec=5.0)
+        return response
+
+    def _publish_mode(self, stamp: int, cluster: int, eps: np.ndarray) -> None:
+        msg = InteractionMode(cluster=int(cluster), embedding=eps.astype(np.float32).tolist())
+        msg.header.stamp = stamp_msg(stamp)
+        msg.header.frame_id = "world"
+        self._mode_pub.publish(msg)
+        self._last_mode = np.asarray(eps, np.float32).copy()
+
+
+def main(args: list[str] | None = None) -> int:
+    apply_ros_defaults()
+    rclpy.init(args=args)
+    node = PolicyNode()
+    executor = MultiThreadedExecutor(num_threads=2)
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

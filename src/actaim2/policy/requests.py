@@ -1,0 +1,64 @@
+"""Validation of /sample_mode and /predict_keypose requests: every refusal says what was wrong.
+
+A :class:`RequestError` carries the reason that ``policy_node`` puts into ``message`` with
+``success=false``; the node keeps serving. Stamps are integer nanoseconds (ROS time), so the
+checks need no ROS types.
+"""
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from actaim2.keypose import PHASE_NAMES
+
+
+NO_VIEWS = "no views yet"
+STALE = "stale observation"
+
+
+class RequestError(ValueError):
+    """A request the policy cannot answer; ``str(error)`` is the reason given to the client."""
+
+
+def is_transient(message: str) -> bool:
+    """Whether a refusal goes away by itself once newer views arrive (a client retries those)."""
+    return message.startswith((NO_VIEWS, STALE))
+
+
+def check_embedding(values: Sequence[float], dim: int) -> np.ndarray:
+    """The embedding as float32 (dim,), or a RequestError for a wrong length or non-finite values."""
+    eps = np.asarray(values, dtype=np.float32)
+    if eps.shape != (dim,):
+        raise RequestError(f"embedding has {eps.size} values, the checkpoint's predictor expects {dim} "
+                           "(pass the embedding /sample_mode returned)")
+    bad = int(np.count_nonzero(~np.isfinite(eps)))
+    if bad:
+        raise RequestError(f"embedding contains NaN or infinite values ({bad} of {dim})")
+    return eps
+
+
+def check_phase(phase: int) -> int:
+    if not 0 <= int(phase) < len(PHASE_NAMES):
+        known = ", ".join(f"{i} ({name})" for i, name in enumerate(PHASE_NAMES))
+        raise RequestError(f"unknown phase {phase}: expected one of {known}")
+    return int(phase)
+
+
+def check_cluster(cluster: int, clusters: int) -> int | None:
+    """None for -1 (sample from the prior), the cluster for 0..clusters-1, else a RequestError."""
+    if int(cluster) == -1:
+        return None
+    if clusters == 0:
+        raise RequestError(f"unknown cluster {cluster}: this mode selector has no discrete clusters; pass -1")
+    if not 0 <= int(cluster) < clusters:
+        raise RequestError(f"unknown cluster {cluster}: the mode selector has {clusters} clusters (0..{clusters - 1}), "
+                           "or -1 to sample one")
+    return int(cluster)
+
+
+def check_fresh(views_stamp_ns: int, not_before_ns: int) -> None:
+    """Views stamped before ``not_before`` show the scene before the last motion: refused."""
+    if views_stamp_ns < not_before_ns:
+        raise RequestError(f"{STALE}: the latest views are stamped {views_stamp_ns / 1e9:.3f} s, "
+                           f"before not_before {not_before_ns / 1e9:.3f} s")
