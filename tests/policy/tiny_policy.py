@@ -10,6 +10,7 @@ run all four phases, MANIPULATE included, whatever eps the barely-trained select
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -67,8 +68,16 @@ def scene_views(config: PerceptionConfig, seeds: tuple[int, ...] = (0, 1)) -> np
     return np.stack(out)
 
 
-def make_checkpoint(out: Path, trajectories: int = 16, seed: int = 0) -> tuple[Path, Path]:
-    """(checkpoint stem, perception YAML) written under ``out``."""
+@dataclass(frozen=True)
+class TinyCheckpoint:
+    stem: Path  # the checkpoint (policy.json + policy.safetensors)
+    perception_yaml: Path  # its perception configuration, for fusion_node and policy_node
+    config: PerceptionConfig
+    views: np.ndarray  # (2, 5, C, R, R) float32: the test scene's views (seeds 0 and 1)
+
+
+def make_checkpoint(out: Path, trajectories: int = 16, seed: int = 0) -> TinyCheckpoint:
+    """Train and save the tiny policy under ``out``."""
     out.mkdir(parents=True, exist_ok=True)
     config = test_perception_config()
     yaml_path = out / "perception_ring5_64.yaml"
@@ -88,7 +97,7 @@ def make_checkpoint(out: Path, trajectories: int = 16, seed: int = 0) -> tuple[P
     trainer = Trainer(CONFIG, data, None, placement, perception_record(config), "tiny-synthetic", out,
                       init_distributed("cpu"), show_progress=False)
     trainer.run()
-    return out / POLICY, yaml_path
+    return TinyCheckpoint(out / POLICY, yaml_path, config, scenes.astype(np.float32))
 
 
 if __name__ == "__main__":  # python tests/policy/tiny_policy.py OUT: a checkpoint for trying the nodes by hand
