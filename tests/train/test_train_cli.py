@@ -94,3 +94,16 @@ def test_train_command_runs_all_phases_and_writes_loadable_checkpoints(dataset, 
     # A finished run resumes to nothing left to do, and the cache is reused.
     assert cli_main(args + ["--resume"]) == 0
     assert len(list((dataset / "cache").iterdir())) == 1
+
+
+def test_baseline_selector_reuses_the_goal_rvt_predictor(dataset, tmp_path):
+    base = ["--data", str(dataset), "--config", _config(tmp_path), "--no-progress"]
+    assert cli_main(["train", "--out", str(tmp_path / "goal"), "--phases", "predictor"] + base) == 0
+    assert cli_main(["train", "--out", str(tmp_path / "cvae"), "--selector", "cvae", "--phases", "selector", "joint",
+                     "--init-from", str(tmp_path / "goal" / "goal_rvt")] + base) == 0
+    record = perception_record(load_perception_config("ring5"))
+    cvae = load_policy(tmp_path / "cvae" / "policy", record)
+    assert cvae.selector.config.kind == "cvae" and cvae.meta["lineage"]["init_from"]["path"].endswith("goal_rvt")
+    goal = load_policy(tmp_path / "goal" / "goal_rvt", record)
+    # the z statistics came with the predictor, so eps means the same thing to both
+    assert (cvae.selector.z_mean == goal.selector.z_mean).all()
