@@ -220,20 +220,25 @@ class TrajectoryCollector:
         )
 
     def _reachable(self, action: ActionSequence, rng: np.random.Generator) -> bool:
-        """IK (self-collision and floor checked) exists for p0, p1 and p2, each seeded from the last."""
-        seed = self.env.spec.home
-        for position in (action.p0, action.p1, action.p2):
-            T = np.eye(4)
-            T[:3, :3], T[:3, 3] = action.R0, position
-            result = self.screen_ik.solve(T, seed, rng=rng, use_cloud=False)
-            if not result.success:
-                return False
-            seed = result.angles
-        return True
+        return ik_reachable(self.screen_ik, self.env.spec.home, action, rng)
 
     def _joints(self) -> dict[str, float]:
         names, positions, _ = self.env.joint_state()
         return {n: float(p) for n, p in zip(names, positions)}
+
+
+def ik_reachable(ik: IKSolver, home: np.ndarray, action: ActionSequence, rng: np.random.Generator) -> bool:
+    """IK (self-collision and floor checked) exists for p0, p1 and p2, each seeded from the last
+    (from ``home`` for p0): the screen a sampled action passes before it is executed."""
+    seed = home
+    for position in (action.p0, action.p1, action.p2):
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = action.R0, position
+        result = ik.solve(T, seed, rng=rng, use_cloud=False)
+        if not result.success:
+            return False
+        seed = result.angles
+    return True
 
 
 _COLLECTOR: TrajectoryCollector | None = None
