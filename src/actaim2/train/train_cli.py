@@ -5,7 +5,7 @@ Examples:
     actaim2 train --data data/ds --out runs/cpu --resume              # continue an interrupted run
     actaim2 train --data data/ds --out runs/cvae --selector cvae --phases selector joint \\
         --init-from runs/cpu/goal_rvt                                 # a baseline on the Goal-RVT predictor
-    torchrun --nproc-per-node 2 -m actaim2.cli train --data data/ds --out runs/ddp   # DDP (gloo on CPU)
+    torchrun --nproc-per-node 2 --master-addr 127.0.0.1 -m actaim2.cli train --data data/ds --out runs/ddp  # DDP
 
 Views of the visually successful ``train_seen`` trajectories are rendered once and cached in
 the dataset folder; 10% of those trajectories (by id hash) are held out for validation curves.
