@@ -19,7 +19,7 @@ def test_primitive_pulls_a_drawer_open(robot):
     from actaim2.sim.env import SimEnv
 
     env = SimEnv(robot, cameras=None)
-    info = env.reset("table", instance=0, seed=0)  # a half-open drawer with a bar handle
+    info = env.reset("table", instance=4, seed=0)  # a half-open drawer with a bar handle, in both arms' reach
     handle = next(h for h in env.object.handles if h.joint == "drawer_0_joint")
     joint = env.object.joints[env.object.dof_index(handle.joint)]
     T = env.object.link(handle.link).entity_pose.to_transformation_matrix() @ handle.tcp_in_link()
