@@ -20,8 +20,10 @@ COMMANDS: dict[tuple[str, ...], tuple[str, str]] = {
     ("expert",): ("actaim2.rollout.expert_eval", "scripted expert success per category (proves the objects are manipulable)"),
     ("render",): ("actaim2.perception.render_cli", "render a bag or saved cloud into orthographic PNG views"),
     ("collect",): ("actaim2.data.collect_cli", "self-supervised data collection in simulation"),
+    ("prepare-objects",): ("actaim2.sim.objects.prepare_cli", "convex decomposition of real object folders into the hull cache"),
     ("stats",): ("actaim2.data.stats_cli", "statistics of a collected dataset"),
     ("train",): ("actaim2.train.train_cli", "train the policy: mode selector, action predictor, joint phase"),
+    ("evaluate",): ("actaim2.eval.evaluate_cli", "SSR and Mode SSR tables of the policy and the baselines in simulation"),
     ("launch",): ("actaim2.launch.cli", "start a node graph (sim_panda_ring5, sim_kinova_azure, real_kinova_azure) as processes"),
 }
 

@@ -1,0 +1,64 @@
+"""One evaluation sample in the simulator, executed the way data collection executes trajectories.
+
+reset the object (half-open, the task's reset seed) -> robot-hidden pictures O_init and the
+object cloud -> the method begins its sample -> for INIT, REACH, GRASP, MANIPULATE: the method
+gives the keypose (a policy from the pictures taken just before), the keypose runner plans it
+(IK, collision checks with the object cloud as in collection, straight lines) and the simulator
+executes it -> the object's DoFs are read (privileged) and judged (``outcome.py``).
+
+A keypose the planner refuses ends the sample there; the DoFs are judged all the same, so a
+part already moved counts. Nothing is retried: one task, one sample.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from actaim2.control.executor import KeyposeRunner
+from actaim2.control.planner import KeyposePlanner
+from actaim2.data.object_cloud import CloudConfig, object_cloud
+from actaim2.eval.outcome import measure
+from actaim2.eval.sim_views import pictures
+from actaim2.eval.sources import NoSample, Scene
+from actaim2.eval.tasks import EvalTask
+from actaim2.keypose import PHASE_NAMES
+from actaim2.sim.env import SimEnv
+
+
+def run_sample(env: SimEnv, planner: KeyposePlanner, executor, cloud_config: CloudConfig, source, task: EvalTask,
+               dof_fraction: float, velocity_scaling: float) -> dict:
+    """Execute one sample of ``source`` for ``task``; the result record (JSON types)."""
+    started = time.perf_counter()
+    obj = task.obj
+    info = env.reset(obj.category if not obj.folder else None, max(obj.instance, 0), seed=task.reset_seed,
+                     dof_fraction=dof_fraction, folder=obj.folder or None)
+    rng = np.random.default_rng(task.sample_seed)
+    init = pictures(env, with_robot=False)
+    scene = Scene(env, info, init, object_cloud(init, cloud_config, rng), rng, task)
+    record = {"key": task.key, "method": task.method, "split": obj.split, "category": obj.category or info.category,
+              "object": obj.key, "slot": task.slot, "reset_seed": task.reset_seed, "sample_seed": task.sample_seed,
+              "requested_cluster": task.cluster}
+    executed, note = 0, ""
+    try:
+        plan = source.begin(scene)
+        record.update(group=plan.group, repetition=plan.repetition, **plan.details)
+        planner.set_cloud(scene.cloud.points)
+        runner = KeyposeRunner(planner, executor, rng)
+        gripper_closed = False
+        for phase in range(len(PHASE_NAMES)):
+            keypose = plan.next(phase, gripper_closed)
+            result = runner.run(keypose, velocity_scaling)
+            if not result.success:
+                note = f"{PHASE_NAMES[phase]}: {result.reason or 'failed'}: {result.message}"
+                break
+            executed += 1
+            gripper_closed = bool(keypose.gripper_closed)
+    except NoSample as exc:
+        note = f"no sample: {exc}"
+        record.update(group=exc.group, repetition=exc.repetition)
+    outcome = measure(list(info.dof_names), info.dof_initial, env.object_dof(), info.dof_lower, info.dof_upper)
+    record.update(success=outcome.success, largest_change=round(outcome.largest_change, 5),
+                  mode=list(outcome.mode) if outcome.mode else None, fractions=outcome.fractions,
+                  phases_executed=executed, note=note, seconds=round(time.perf_counter() - started, 3))
+    return record

@@ -1,0 +1,216 @@
+"""`actaim2 evaluate`: the paper's SSR and Mode SSR tables on the simulator, with the baselines.
+
+Examples:
+    actaim2 evaluate --out runs/eval --checkpoint runs/cpu/policy --data data/ds          # full (<= 3.5 h, resumable)
+    actaim2 evaluate --out runs/eval-quick --quick --checkpoint runs/cpu/policy --data data/ds
+    actaim2 evaluate --out runs/eval --checkpoint runs/cpu/policy --vqvae runs/vq/policy --cvae runs/cvae/policy \\
+        --data data/ds --objects ~/partnet-mobility/148 --workers 2
+    actaim2 evaluate --out runs/eval --checkpoint runs/cpu/policy --ray auto --workers 16          # a Ray cluster
+
+Rows: ActAIM2 (--checkpoint), Goal-RVT (--goal-rvt, default <checkpoint folder>/goal_rvt, with
+the dataset's encoder), VQVAE-RVT (--vqvae), ActAIM's CVAE (--cvae), Data Collection (--data:
+the GMM-adaptive sampler fitted on the dataset's exploration trajectories), Random (always).
+Interrupt it at any time: the same command resumes, skipping finished samples. Tables go to
+<out>/tables.md with the command and the checkpoints' digests; records to <out>/results.jsonl.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shlex
+import sys
+import time
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--out", type=Path, required=True, help="results folder (created, or resumed if it exists)")
+    size = parser.add_mutually_exclusive_group()
+    size.add_argument("--smoke", action="store_true", help="3 objects, 1 sample per cluster (CI, <= 2 min)")
+    size.add_argument("--quick", action="store_true", help="15 objects (one per category and split), 1 sample per cluster (<= 10 min)")
+    parser.add_argument("--checkpoint", type=Path, help="ActAIM2 policy checkpoint (stem, e.g. runs/cpu/policy)")
+    parser.add_argument("--goal-rvt", type=Path, help="Goal-RVT checkpoint (default: goal_rvt beside --checkpoint, if present)")
+    parser.add_argument("--vqvae", type=Path, help="VQVAE-RVT policy checkpoint")
+    parser.add_argument("--cvae", type=Path, help="ActAIM (CVAE) policy checkpoint")
+    parser.add_argument("--data", type=Path, help="the training dataset: Data Collection's GMMs and Goal-RVT's encoder E")
+    parser.add_argument("--encoder", type=Path, help="Goal-RVT's encoder E (default: the dataset's encoder.pt)")
+    parser.add_argument("--methods", default="", help="only these rows (comma separated: actaim2, data_collection, random, "
+                                                      "goal_rvt, vqvae_rvt, actaim_cvae)")
+    parser.add_argument("--splits", default="train_seen,train_unseen_instance,heldout_category",
+                        help="catalogue splits to evaluate on ('' = none, with --objects)")
+    parser.add_argument("--objects", type=Path, help="PartNet-Mobility folder(s) (a folder with mobility.urdf, or a folder of them): an extra split")
+    parser.add_argument("--workers", type=int, default=2, help="worker processes (0 = in this process); Ray actors with --ray")
+    parser.add_argument("--ray", metavar="ADDRESS", help="run the samples on Ray actors: auto, ray://host:port, or local")
+    parser.add_argument("--robot", default="panda", help="robot preset or YAML")
+    parser.add_argument("--perception", default="ring5", help="rig configuration when no checkpoint is given (samplers only)")
+    parser.add_argument("--render-path", choices=["sapien", "raycast"], help="override the configuration's render path")
+    parser.add_argument("--allow-raycast", action="store_true", help="without a Vulkan device, render by ray casting instead of refusing")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _preset(args: argparse.Namespace):
+    from actaim2.eval.presets import PRESETS
+
+    return PRESETS["smoke" if args.smoke else "quick" if args.quick else "full"]
+
+
+def _render_path(perception, args: argparse.Namespace) -> str:
+    """The configuration's render path, or ray casting when asked for (or allowed, without Vulkan)."""
+    from actaim2.sim.render_path import vulkan_device_error
+
+    requested = args.render_path or perception.render_path
+    if requested == "raycast":
+        return "raycast"
+    error = vulkan_device_error()
+    if error is None:
+        return "sapien"
+    if not args.allow_raycast:
+        raise ValueError(f"no Vulkan device for SAPIEN rendering ({error}); pass --allow-raycast to evaluate on ray-cast "
+                         f"pictures (the models were trained on {perception.render_path} pictures)")
+    print(f"actaim2 evaluate: no Vulkan device ({error}): ray-cast pictures, as --allow-raycast permits", file=sys.stderr)
+    return "raycast"
+
+
+def _methods(args: argparse.Namespace) -> tuple[dict[str, Path], list[str]]:
+    """(method -> checkpoint stem, the methods to run), with the reason for every row left out."""
+    from actaim2.eval.methods import METHODS
+    from actaim2.train.checkpoint import paths
+
+    checkpoints = {"actaim2": args.checkpoint, "goal_rvt": args.goal_rvt, "vqvae_rvt": args.vqvae, "actaim_cvae": args.cvae}
+    if checkpoints["goal_rvt"] is None and args.checkpoint is not None and paths(args.checkpoint.parent / "goal_rvt")[1].exists():
+        checkpoints["goal_rvt"] = args.checkpoint.parent / "goal_rvt"
+    available = [m for m, stem in checkpoints.items() if stem is not None]
+    if checkpoints["goal_rvt"] is not None and _encoder(args) is None:
+        available.remove("goal_rvt")
+        print("actaim2 evaluate: Goal-RVT left out: its encoder E needs --data (encoder.pt) or --encoder", file=sys.stderr)
+    if args.data is not None:
+        available.append("data_collection")
+    available.append("random")
+    wanted = [m for m in args.methods.split(",") if m] or list(METHODS)
+    unknown = [m for m in wanted if m not in METHODS]
+    if unknown:
+        raise ValueError(f"unknown method(s) {unknown}; known: {list(METHODS)}")
+    missing = [m for m in wanted if m not in available]
+    if args.methods and missing:
+        raise ValueError(f"cannot run {missing}: " + "; ".join(f"{m} needs {METHODS[m].needs}" for m in missing))
+    return {m: Path(s) for m, s in checkpoints.items() if s is not None}, [m for m in METHODS if m in wanted and m in available]
+
+
+def _encoder(args: argparse.Namespace) -> Path | None:
+    from actaim2.data.labelling import ENCODER_FILE, REPORT_FILE
+
+    if args.encoder is not None:
+        return args.encoder
+    if args.data is None:
+        return None
+    report = args.data / REPORT_FILE
+    if report.exists():  # the encoder labelling used (a user's VGG-19 file, or the trained default)
+        used = Path(json.loads(report.read_text())["encoder"])
+        return used if used.exists() else None
+    return args.data / ENCODER_FILE if (args.data / ENCODER_FILE).exists() else None
+
+
+def _gmm(data: Path) -> dict:
+    """Data Collection's sampler per object: collection's GMM fit on the dataset's exploration stage."""
+    from actaim2.data.collect import CollectConfig, fit_gmm_samplers
+    from actaim2.data.storage import DatasetReader
+
+    info = DatasetReader(data).info
+    config = CollectConfig(out=data, objects=(), per_object={}, seed=int(info.get("seed", 0)), robot=info.get("robot", "panda"))
+    return fit_gmm_samplers(config, 0)
+
+
+def main(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from actaim2.eval.checkpoints import describe, perception_of
+    from actaim2.eval.evalset import EVAL_SET_VERSION, catalogue_objects, folder_objects
+    from actaim2.eval.results import ResultLog, RunMismatchError, check_run
+    from actaim2.eval.tables import report
+    from actaim2.eval.tasks import plan_tasks
+    from actaim2.eval.worker import EvalWorker, WorkerSetup
+    from actaim2.parallel import run_unordered
+    from actaim2.perception.config import load_perception_config
+
+    preset = _preset(args)
+    try:
+        stems, methods = _methods(args)
+        described = {m: describe(stems[m]) for m in methods if m in stems}
+        configs = {m: perception_of(stems[m]) for m in described}
+        perception = next(iter(configs.values())) if configs else load_perception_config(args.perception)
+        for m, c in configs.items():
+            if (c.rig, c.center, c.half_extent) != (perception.rig, perception.center, perception.half_extent):
+                raise ValueError(f"{m}'s checkpoint was trained on rig {c.rig} (cube {c.center}, {c.half_extent}), "
+                                 f"{next(iter(configs))}'s on {perception.rig} ({perception.center}, {perception.half_extent})")
+        splits = tuple(s for s in args.splits.split(",") if s)
+        objects = catalogue_objects(splits, preset.instances_per_category, preset.categories)
+        if args.objects is not None:
+            objects += folder_objects(args.objects)
+        if not objects:
+            raise ValueError("no object to evaluate on: give --splits or --objects")
+        render_path = _render_path(perception, args)
+        gmm = _gmm(args.data) if "data_collection" in methods else None
+        encoder = _encoder(args) if "goal_rvt" in methods else None
+        run = {"eval_set_version": EVAL_SET_VERSION, "robot": args.robot, "rig": perception.rig,
+               "methods": {m: described.get(m, {}).get("weights_sha256") or ("dataset " + _data_digest(args.data)
+                                                                          if m == "data_collection" else m) for m in methods}}
+        check_run(args.out, run)
+    except (ValueError, FileNotFoundError, RunMismatchError) as exc:
+        print(f"actaim2 evaluate: {exc}", file=sys.stderr)
+        return 2
+    clusters = {m: described[m]["clusters"] if m in described and m != "goal_rvt" else 0 for m in methods}
+    skip = {"data_collection": {o.key for o in objects if o.key not in (gmm or {})}}
+    if gmm is not None and skip["data_collection"]:
+        print(f"Data Collection: {len(skip['data_collection'])} object(s) have no collected trajectories in {args.data}; "
+              f"left out of its row", file=sys.stderr)
+    tasks = plan_tasks({m: clusters[m] for m in methods}, objects, preset.counts, skip)
+    log = ResultLog(args.out)
+    todo = [t for t in tasks if t.key not in log.done]
+    print(f"{len(tasks)} samples ({preset.name}: {len(objects)} objects, rows {', '.join(methods)}); "
+          f"{len(tasks) - len(todo)} already done; render path {render_path}")
+    setup = WorkerSetup(args.robot, perception.rig, render_path, tuple(perception.center), float(perception.half_extent),
+                        {m: str(stems[m]) for m in described}, str(encoder) if encoder else None, gmm)
+    started, errors = time.perf_counter(), 0
+    bar = tqdm(total=len(todo), unit="sample", disable=args.no_progress)
+    try:
+        for record in run_unordered(EvalWorker, setup, todo, args.workers, args.ray):
+            if "error" in record:
+                errors += 1
+                bar.write(f"{record['key']}: {record['error']}")
+            else:
+                log.append(record)
+            bar.update(1)
+    finally:
+        bar.close()
+    seconds = time.perf_counter() - started
+    header = _header(args, preset.name, described, render_path, len(objects), len(tasks), len(log.records), errors, seconds)
+    records = [log.records[t.key] for t in tasks if t.key in log.records]
+    (args.out / "tables.md").write_text(report(records, methods, header))
+    print(f"{len(todo) - errors} samples run in {seconds:.0f} s ({errors} errors, retried by a rerun); tables: {args.out / 'tables.md'}")
+    return 0 if errors == 0 else 1
+
+
+def _data_digest(data: Path | None) -> str:
+    from actaim2.train.data import dataset_digest
+
+    return dataset_digest(data) if data is not None else "-"
+
+
+def _header(args, preset: str, described: dict, render_path: str, n_objects: int, n_tasks: int, n_done: int,
+            errors: int, seconds: float) -> list[str]:
+    from actaim2.eval.evalset import EVAL_SET_VERSION
+
+    command = "actaim2 evaluate " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if sys.argv[1:2] == ["evaluate"] \
+        else "actaim2 evaluate (called from Python)"
+    lines = ["# actaim2 evaluation", "", f"Command: `{command}`", "",
+             f"- size: {preset}, {n_objects} objects, {n_tasks} samples planned, {n_done} in the results "
+             f"({errors} errors this run), evaluation set version {EVAL_SET_VERSION}",
+             f"- this run: {seconds:.0f} s on {args.workers} worker(s){' (Ray ' + args.ray + ')' if args.ray else ''}, "
+             f"load average {os.getloadavg()[0]:.1f}, render path {render_path}, robot {args.robot}"]
+    for method, d in described.items():
+        lines.append(f"- {method}: checkpoint `{d['path']}`, weights sha256 `{d['weights_sha256']}`, "
+                     f"dataset {d['dataset_digest']}, views {d['perception_digest']}")
+    if args.data is not None:
+        lines.append(f"- dataset `{args.data}` digest {_data_digest(args.data)}")
+    return lines

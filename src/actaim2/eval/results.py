@@ -1,0 +1,72 @@
+"""The results of an evaluation run: one JSON line per finished task, and the run's identity.
+
+``<out>/results.jsonl`` gets a line as each task finishes (flushed), so an interrupted run loses
+at most the tasks in flight; a rerun of the same command skips every key already there. A line
+cut short by a kill is dropped when the file is opened again. Tasks that raised are not written
+(they are retried by the next run).
+
+``<out>/run.json`` records what the results were made with: the evaluation set version, the
+robot and rig, and per method its checkpoint's weights digest. Resuming with another
+checkpoint for a method already in the file is refused, so numbers of two models never mix.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+RESULTS_FILE = "results.jsonl"
+RUN_FILE = "run.json"
+
+
+class RunMismatchError(ValueError):
+    """The output folder holds results made with something else (named in the message)."""
+
+
+def check_run(out: Path, run: dict) -> dict:
+    """Merge ``run`` into ``out/run.json``; refuse a different evaluation set, robot, rig or checkpoint."""
+    path = out / RUN_FILE
+    if not path.exists():
+        out.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(run, indent=2, sort_keys=True))
+        return run
+    old = json.loads(path.read_text())
+    for field in ("eval_set_version", "robot", "rig"):
+        if old.get(field) != run.get(field):
+            raise RunMismatchError(f"{out} holds results of {field} {old.get(field)!r}, this run has {run.get(field)!r}: "
+                                   f"use another --out")
+    for method, identity in run["methods"].items():
+        before = old["methods"].get(method)
+        if before is not None and before != identity:
+            raise RunMismatchError(f"{out} holds {method} results made with {before}, this run has {identity}: "
+                                   f"use another --out (or remove {method}'s lines)")
+    merged = {**old, "methods": {**old["methods"], **run["methods"]}}
+    path.write_text(json.dumps(merged, indent=2, sort_keys=True))
+    return merged
+
+
+class ResultLog:
+    """Append-only JSONL of task records, keyed by ``record["key"]``."""
+
+    def __init__(self, out: Path):
+        self.path = Path(out) / RESULTS_FILE
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.records: dict[str, dict] = {}
+        if self.path.exists():
+            text = self.path.read_text()
+            complete = text[: text.rfind("\n") + 1]  # a line without its newline was cut by a kill
+            if complete != text:
+                self.path.write_text(complete)
+            for line in complete.splitlines():
+                if line.strip():
+                    record = json.loads(line)
+                    self.records[record["key"]] = record
+
+    @property
+    def done(self) -> set[str]:
+        return set(self.records)
+
+    def append(self, record: dict) -> None:
+        with open(self.path, "a") as f:
+            f.write(json.dumps(record) + "\n")
+            f.flush()
+        self.records[record["key"]] = record

@@ -1,0 +1,166 @@
+"""Markdown tables of an evaluation's records: the paper's Table 1 (SSR), Table 2 (Mode SSR), the
+appendix table of 3rd and 4th modes, and the acceptance checks of issue 13.
+
+Every cell is a pooled rate over the samples it covers, with its 95 % Wilson interval
+(``stats.py``): a category cell pools the category's objects in the split, AVG pools the whole
+split (every object has the same number of samples, so this is the mean over objects, and over
+categories where they have equally many objects, as in the paper).
+"""
+from __future__ import annotations
+
+from collections import defaultdict
+from typing import Iterable, Sequence
+
+from actaim2.eval.evalset import FOLDERS, SPLIT_TITLES, SPLITS
+from actaim2.eval.methods import METHODS, NOT_REPRODUCED, PSEUDO_CLUSTERS
+from actaim2.eval.mode_ssr import GroupSample, ModeResult, object_mode_ssr, pooled
+from actaim2.eval.stats import Rate
+from actaim2.sim.objects.catalog import HELDOUT_CATEGORIES
+
+PAPER_ORDER = ("faucet", "table", "storage_furniture", "door", "switch", "refrigerator") + HELDOUT_CATEGORIES
+SHORT = {"storage_furniture": "storage", "refrigerator": "fridge"}
+AVG = "AVG"
+MODE_NAMES = {1: "1st", 2: "2nd", 3: "3rd", 4: "4th"}
+# The paper's AVG columns (seen, unseen instances, unseen categories), for comparison only.
+PAPER_SSR = {"actaim2": (48.6, 38.7, 32.4), "data_collection": (11.2, 12.2, 17.6), "goal_rvt": (47.8, 38.6, 29.8),
+             "actaim_cvae": (33.3, 25.2, 31.5)}
+PAPER_MODE = {("actaim2", 1): (71.5, 61.4, 48.2), ("actaim2", 2): (27.0, 20.9, 6.9),
+              ("goal_rvt", 1): (60.3, 52.7, 40.1), ("goal_rvt", 2): (33.6, 25.8, 6.9),
+              ("vqvae_rvt", 1): (48.75, 39.4, 32.5), ("vqvae_rvt", 2): (0.0, 0.0, 0.0)}
+
+
+def _splits(records: Sequence[dict]) -> list[str]:
+    present = {r["split"] for r in records}
+    return [s for s in (*SPLITS, FOLDERS) if s in present]
+
+
+def _categories(records: Sequence[dict], split: str) -> list[str]:
+    present = {r["category"] for r in records if r["split"] == split}
+    return [c for c in PAPER_ORDER if c in present] + sorted(present - set(PAPER_ORDER))
+
+
+def ssr_cells(records: Iterable[dict]) -> dict[tuple[str, str, str], Rate]:
+    """(method, split, category or AVG) -> SSR."""
+    cells: dict[tuple[str, str, str], Rate] = defaultdict(lambda: Rate(0, 0))
+    for r in records:
+        one = Rate(int(bool(r["success"])), 1)
+        cells[r["method"], r["split"], r["category"]] += one
+        cells[r["method"], r["split"], AVG] += one
+    return dict(cells)
+
+
+def object_modes(records: Iterable[dict], modes: int = 4) -> dict[tuple[str, str], list[ModeResult]]:
+    """(method, object) -> mode results of that object (``mode_ssr.object_mode_ssr``)."""
+    samples: dict[tuple[str, str], list[GroupSample]] = defaultdict(list)
+    for r in records:
+        if r.get("group", -1) >= 0:
+            samples[r["method"], r["object"]].append(GroupSample(r["group"], r["repetition"], tuple(r["mode"]) if r["mode"] else None))
+    return {key: object_mode_ssr(s, modes, f"{key[0]}|{key[1]}") for key, s in samples.items()}
+
+
+def mode_cells(records: Sequence[dict], modes: int = 4) -> dict[tuple[str, str, str, int], Rate]:
+    """(method, split, category or AVG, mode rank) -> Mode SSR pooled over the objects."""
+    where = {(r["method"], r["object"]): (r["split"], r["category"]) for r in records}
+    groups: dict[tuple[str, str, str], list[list[ModeResult]]] = defaultdict(list)
+    for (method, obj), results in object_modes(records, modes).items():
+        split, category = where[method, obj]
+        groups[method, split, category].append(results)
+        groups[method, split, AVG].append(results)
+    return {(m, s, c, rank): pooled(per_object, rank) for (m, s, c), per_object in groups.items() for rank in range(1, modes + 1)}
+
+
+def _header(categories: list[str]) -> list[str]:
+    names = [SHORT.get(c, c) for c in categories] + [f"**{AVG}**", "samples"]
+    return ["| method | " + " | ".join(names) + " |", "|---" * (len(names) + 1) + "|"]
+
+
+def ssr_table(records: Sequence[dict], methods: list[str]) -> list[str]:
+    cells = ssr_cells(records)
+    lines = []
+    for split in _splits(records):
+        categories = _categories(records, split)
+        lines += ["", f"**{SPLIT_TITLES[split]}** (SSR %, 95 % Wilson interval)", ""] + _header(categories)
+        for m in methods:
+            if (m, split, AVG) not in cells:
+                continue
+            row = [cells.get((m, split, c), Rate(0, 0)).cell() for c in categories + [AVG]]
+            lines.append(f"| {METHODS[m].title} | " + " | ".join(row) + f" | {cells[m, split, AVG].trials} |")
+    return lines
+
+
+def mode_table(records: Sequence[dict], methods: list[str], ranks: Sequence[int] = (1, 2)) -> list[str]:
+    cells = mode_cells(records, max(ranks))
+    lines = []
+    for split in _splits(records):
+        categories = _categories(records, split)
+        lines += ["", f"**{SPLIT_TITLES[split]}** (Mode SSR %, 95 % Wilson interval over the half-B samples)", ""]
+        lines += _header(categories)
+        for m in methods:
+            for rank in ranks:
+                if (m, split, AVG, rank) not in cells:
+                    continue
+                suffix = f" ({PSEUDO_CLUSTERS} random pseudo-clusters)" if METHODS[m].grouping == "pseudo" else ""
+                row = [cells.get((m, split, c, rank), Rate(0, 0)).cell() for c in categories + [AVG]]
+                lines.append(f"| {METHODS[m].title}{suffix}, {MODE_NAMES[rank]} mode | " + " | ".join(row)
+                             + f" | {cells[m, split, AVG, rank].trials} |")
+    return lines
+
+
+def many_modes_table(records: Sequence[dict], methods: list[str]) -> list[str]:
+    """Per object, modes 1-4, for the objects whose successes showed three or more distinct outcomes."""
+    per_object = object_modes(records, 4)
+    where = {(r["method"], r["object"]): (r["split"], r["category"]) for r in records}
+    lines = ["| method | split | category | object | 1st mode | 2nd mode | 3rd mode | 4th mode |", "|---" * 8 + "|"]
+    for (m, obj), results in sorted(per_object.items(), key=lambda kv: (methods.index(kv[0][0]), kv[0][1])):
+        if m not in methods or sum(r.mode is not None for r in results) < 3:
+            continue
+        split, category = where[m, obj]
+        cells = [f"{100 * r.rate.value:.0f} ({r.rate.successes}/{r.rate.trials}) {r.mode[0]} {'+' if r.mode[1] > 0 else '-'}"
+                 if r.mode is not None and r.rate.trials else "-" for r in results]
+        lines.append(f"| {METHODS[m].title} | {SPLIT_TITLES[split]} | {category} | {obj} | " + " | ".join(cells) + " |")
+    return lines if len(lines) > 2 else ["(no object showed three or more distinct modes)"]
+
+
+def _above(a: Rate | None, b: Rate | None) -> str:
+    if a is None or b is None or not a.trials or not b.trials:
+        return "not measured"
+    return "holds" if a.interval[0] > b.interval[1] else "does not hold"
+
+
+def acceptance_table(records: Sequence[dict]) -> list[str]:
+    """Issue 13's acceptance: ActAIM2's intervals above Data Collection's (SSR; 2nd mode vs pseudo-clusters)."""
+    ssr, modes = ssr_cells(records), mode_cells(records, 2)
+    lines = ["| check | ActAIM2 | Data Collection | interval above |", "|---|---|---|---|"]
+    for split in (s for s in SPLITS[:2] if s in _splits(records)):
+        a, b = ssr.get(("actaim2", split, AVG)), ssr.get(("data_collection", split, AVG))
+        lines.append(f"| SSR, {SPLIT_TITLES[split]} | {a.cell() if a else '-'} | {b.cell() if b else '-'} | {_above(a, b)} |")
+    for split in _splits(records):
+        a, b = modes.get(("actaim2", split, AVG, 2)), modes.get(("data_collection", split, AVG, 2))
+        lines.append(f"| 2nd-mode SSR, {SPLIT_TITLES[split]} (Data Collection in {PSEUDO_CLUSTERS} random pseudo-clusters) | "
+                     f"{a.cell() if a else '-'} | {b.cell() if b else '-'} | {_above(a, b)} |")
+    return lines
+
+
+def paper_table() -> list[str]:
+    lines = ["| paper (AVG %) | seen | unseen instances | unseen categories |", "|---|---|---|---|"]
+    lines += [f"| {METHODS[m].title}, SSR | " + " | ".join(f"{v:.1f}" for v in values) + " |" for m, values in PAPER_SSR.items()]
+    lines += [f"| {METHODS[m].title}, {MODE_NAMES[k]} mode | " + " | ".join(f"{v:.1f}" for v in values) + " |"
+              for (m, k), values in PAPER_MODE.items()]
+    return lines
+
+
+def report(records: Sequence[dict], methods: list[str], header: list[str]) -> str:
+    """The whole markdown report: header lines (command, checkpoints), then every table."""
+    done = [m for m in methods if any(r["method"] == m for r in records)]
+    lines = list(header)
+    lines += ["", "## Table 1: sample success rate (SSR)"] + ssr_table(records, done)
+    lines += ["", "## Table 2: Mode SSR (1st and 2nd modes)",
+              "", "Mode SSR: modes ranked over all successes of an object; each mode's cluster chosen on half A, "
+                  "its rate measured on half B (docs/evaluation.md)."] + mode_table(records, done)
+    lines += ["", "## Appendix: objects with more than two modes (Mode SSR of modes 1-4, half B)", ""]
+    lines += many_modes_table(records, done)
+    lines += ["", "## Acceptance checks (issue 13)", ""] + acceptance_table(records)
+    lines += ["", "## The paper's figures, for comparison", ""] + paper_table()
+    lines += ["", "## Methods", ""] + [f"- **{METHODS[m].title}**: {METHODS[m].about}" for m in done]
+    lines += [f"- **{name}**: not reproduced: {why}" for name, why in NOT_REPRODUCED.items()]
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,70 @@
+"""Mode SSR with the split-half cluster choice, on synthetic outcome tables whose answer is known."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from actaim2.eval.mode_ssr import GroupSample, object_mode_ssr, pooled, rank_modes
+
+OPEN, CLOSE, OTHER = ("drawer", 1), ("drawer", -1), ("door", 1)
+
+
+def samples(table: dict[int, list]) -> list[GroupSample]:
+    """{group: [outcome of repetition 0, 1, ...]} -> samples."""
+    return [GroupSample(g, r, m) for g, outcomes in table.items() for r, m in enumerate(outcomes)]
+
+
+def test_known_answer() -> None:
+    # cluster 0 closes 3 of 4 times, cluster 1 opens 2 of 4, cluster 2 fails; CLOSE is the 1st mode (3 vs 2 successes)
+    table = {0: [CLOSE, CLOSE, None, CLOSE], 1: [None, OPEN, OPEN, None], 2: [None] * 4}
+    first, second, third = object_mode_ssr(samples(table), 3, "known")
+    assert rank_modes(samples(table)) == [CLOSE, OPEN]
+    assert (first.mode, first.group, first.rate.successes, first.rate.trials) == (CLOSE, 0, 2, 2)  # half B: reps 1, 3
+    assert (second.mode, second.group, second.rate.successes, second.rate.trials) == (OPEN, 1, 1, 2)
+    assert third.mode is None and third.rate.successes == 0 and third.rate.trials == 2  # no 3rd mode: 0 of 2
+
+
+def test_modes_need_separate_clusters() -> None:
+    # one cluster does everything: the 2nd mode gets another cluster, where it never happens
+    table = {0: [CLOSE, OPEN, CLOSE, OPEN], 1: [None] * 4}
+    first, second = object_mode_ssr(samples(table), 2, "collapsed")
+    assert first.group == 0 and second.group == 1
+    assert second.rate.successes == 0
+
+
+def test_split_half_is_unbiased_where_max_over_clusters_is_inflated() -> None:
+    """No structure at all: 8 clusters that behave alike (CLOSE 45 %, OPEN 15 %, failure 40 %), 4 samples each.
+
+    The best cluster's rate on the same samples rewards chance (about 0.4 for the 15 % mode);
+    chosen on half A and measured on half B, the 2nd mode stays at its true 15 %.
+    """
+    rng = np.random.default_rng(0)
+    objects, clusters, per_cluster = 600, 8, 4
+    p = {CLOSE: 0.45, OPEN: 0.15, None: 0.40}
+    outcomes = list(p)
+    split_half, naive = [], []
+    for k in range(objects):
+        draws = rng.choice(len(outcomes), size=(clusters, per_cluster), p=list(p.values()))
+        table = {g: [outcomes[i] for i in draws[g]] for g in range(clusters)}
+        s = samples(table)
+        split_half.append(object_mode_ssr(s, 2, f"object{k}"))
+        second = rank_modes(s)[1] if len(rank_modes(s)) > 1 else None
+        naive.append(max(sum(m == second for m in table[g]) / per_cluster for g in range(clusters - 1)))
+    for rank, truth in ((1, 0.45), (2, 0.15)):
+        rate = pooled(split_half, rank)
+        assert rate.trials == objects * per_cluster // 2
+        assert abs(rate.value - truth) < 3 * np.sqrt(truth * (1 - truth) / rate.trials)  # within 3 standard errors
+    assert np.mean(naive) > 0.3  # what choosing and measuring on the same samples would report
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_structure_is_found(seed: int) -> None:
+    """Clusters 0-3 close 90 % of the time, 4-7 open 60 %: the split-half finds both modes at their rates."""
+    rng = np.random.default_rng(seed)
+    results = []
+    for k in range(300):
+        table = {g: [(CLOSE if g < 4 else OPEN) if rng.random() < (0.9 if g < 4 else 0.6) else None for _ in range(4)]
+                 for g in range(8)}
+        results.append(object_mode_ssr(samples(table), 2, f"o{k}"))
+    assert abs(pooled(results, 1).value - 0.9) < 0.05
+    assert abs(pooled(results, 2).value - 0.6) < 0.06
