@@ -22,6 +22,8 @@ setup(
     entry_points={
         "console_scripts": [
             "control_node = actaim2_control.control_node:main",
+            "teleop_node = actaim2_control.teleop_node:main",
+            "scripted_teleop = actaim2_control.scripted_teleop:main",
         ],
     },
 )

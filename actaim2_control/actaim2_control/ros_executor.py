@@ -165,16 +165,21 @@ class RosExecutor:
         return StepResult(False, f"arm not settled at the goal: {np.max(np.abs(state.position - goal)):.4f} rad away "
                                  f"(tolerance {s.goal_tolerance:g}), moving at {np.max(np.abs(state.velocity)):.3f} rad/s")
 
+    def send(self, trajectory: JointTrajectory) -> None:
+        """Start ``trajectory`` now without waiting for it (a stop, a teleop jog): the controller
+        replaces the running one with it."""
+        msg = _trajectory_msg(trajectory)
+        if self._arm.server_is_ready():
+            self._arm.send_goal_async(FollowJointTrajectory.Goal(trajectory=msg))
+        else:
+            self._topic.publish(msg)
+
     def _stop(self) -> StepResult:
         """Brake to a standstill within the full limits, replacing the running trajectory."""
         s = self._settings
         state = self.arm_state()
         stop = sample([self._stopper.stop(state, self._full_limits)], self._spec.arm_joints, s.sample_period)
-        msg = _trajectory_msg(stop) if len(stop) else _trajectory_msg(_hold(self._spec, state.position))
-        if self._arm.server_is_ready():
-            self._arm.send_goal_async(FollowJointTrajectory.Goal(trajectory=msg))
-        else:
-            self._topic.publish(msg)
+        self.send(stop if len(stop) else _hold(self._spec, state.position))
         still = _wait(lambda: np.all(np.abs(self.arm_state().velocity) < s.stopped_velocity), stop.duration + s.settle_timeout)
         return StepResult(False, "cancelled: arm stopped" if still else "cancelled: the arm did not come to rest")
 
