@@ -31,7 +31,7 @@ FORWARD_BATCH = 1
 TRAIN_BATCH = 8
 
 
-def _time(fn, repeats: int, warmup: int, device: torch.device) -> tuple[np.ndarray, np.ndarray]:
+def time_calls(fn, repeats: int, warmup: int, device: torch.device) -> tuple[np.ndarray, np.ndarray]:
     """Wall and process-CPU milliseconds of ``fn()`` over ``repeats`` calls after ``warmup``."""
     wall, cpu = [], []
     for i in range(warmup + repeats):
@@ -47,7 +47,7 @@ def _time(fn, repeats: int, warmup: int, device: torch.device) -> tuple[np.ndarr
     return np.array(wall), np.array(cpu)
 
 
-def _row(model: str, measure: str, batch: int, params: int, wall: np.ndarray, cpu: np.ndarray, target: float | None) -> dict:
+def result_row(model: str, measure: str, batch: int, params: int, wall: np.ndarray, cpu: np.ndarray, target: float | None) -> dict:
     p50, p99 = np.percentile(wall, [50, 99])
     return {
         "model": model,
@@ -135,9 +135,9 @@ def bench_predictor(
         with torch.inference_mode(), autocast:
             decode_action(model(views, eps, proprio), placement)
 
-    wall, cpu = _time(forward_decode, repeats, warmup=5, device=dev)
+    wall, cpu = time_calls(forward_decode, repeats, warmup=5, device=dev)
     target = TARGET_FORWARD_P50_MS if dev.type == "cpu" else None  # the targets are for 2 CPU cores
-    rows.append(_row(name, "forward + 3-D decode", FORWARD_BATCH, params, wall, cpu, target))
+    rows.append(result_row(name, "forward + 3-D decode", FORWARD_BATCH, params, wall, cpu, target))
 
     model.train()
     optimiser = torch.optim.AdamW(model.parameters(), lr=1e-4)
@@ -156,16 +156,16 @@ def bench_predictor(
         loss.backward()
         optimiser.step()
 
-    wall, cpu = _time(train_step, train_repeats, warmup=2, device=dev)
+    wall, cpu = time_calls(train_step, train_repeats, warmup=2, device=dev)
     target = TARGET_TRAIN_STEP_P50_MS if train_batch == TRAIN_BATCH and dev.type == "cpu" else None
-    rows.append(_row(name, "training step", train_batch, params, wall, cpu, target))
+    rows.append(result_row(name, "training step", train_batch, params, wall, cpu, target))
     if augment_repeats <= 0:
         return rows
 
     scene = _synthetic_views(size, placement)
     keypose = keyposes[0].double().numpy()
-    wall, cpu = _time(lambda: augment(scene, keypose, placement, rng), augment_repeats, warmup=2, device=torch.device("cpu"))
-    rows.append(_row(f"augmentation {size}px, {int((scene[:, -1] > 0).sum())} points", "per sample (CPU)", 1, 0, wall, cpu, None))
+    wall, cpu = time_calls(lambda: augment(scene, keypose, placement, rng), augment_repeats, warmup=2, device=torch.device("cpu"))
+    rows.append(result_row(f"augmentation {size}px, {int((scene[:, -1] > 0).sum())} points", "per sample (CPU)", 1, 0, wall, cpu, None))
     return rows
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import torch
 
-from actaim2.bench.models import _row, _time
+from actaim2.bench.models import result_row, time_calls
 
 TARGET_SAMPLE_P50_MS = 5.0
 SAMPLE_BATCH = 1
@@ -41,9 +41,9 @@ def bench_selector(kinds: tuple[str, ...] = ("cgmvae", "cvae", "vqvae"), config=
         name = f"selector {kind} K{cfg.clusters} x{cfg.latent_dim} z{cfg.z_dim}"
         views = torch.rand(SAMPLE_BATCH, cfg.obs.views, cfg.obs.in_channels, resolution, resolution, device=dev)
         gen = torch.Generator(device=dev).manual_seed(seed)
-        wall, cpu = _time(lambda: model.sample(views, None, gen), repeats, warmup=5, device=dev)
+        wall, cpu = time_calls(lambda: model.sample(views, None, gen), repeats, warmup=5, device=dev)
         target = TARGET_SAMPLE_P50_MS if dev.type == "cpu" and kind == "cgmvae" else None
-        rows.append(_row(name, "sample (views -> eps)", SAMPLE_BATCH, params, wall, cpu, target))
+        rows.append(result_row(name, "sample (views -> eps)", SAMPLE_BATCH, params, wall, cpu, target))
 
         model.train()
         optimiser = torch.optim.AdamW(model.parameters(), lr=1e-4)
@@ -56,6 +56,6 @@ def bench_selector(kinds: tuple[str, ...] = ("cgmvae", "cvae", "vqvae"), config=
             loss.backward()
             optimiser.step()
 
-        wall, cpu = _time(train_step, train_repeats, warmup=2, device=dev)
-        rows.append(_row(name, "training step", TRAIN_BATCH, params, wall, cpu, None))
+        wall, cpu = time_calls(train_step, train_repeats, warmup=2, device=dev)
+        rows.append(result_row(name, "training step", TRAIN_BATCH, params, wall, cpu, None))
     return rows
