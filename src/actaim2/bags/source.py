@@ -161,6 +161,11 @@ class BagSource:
             except Exception as exc:  # noqa: BLE001 - a damaged file ends its own part of the replay only
                 self._report(f"{f.path}: reading failed ({type(exc).__name__}: {exc}); the rest of this file is skipped")
 
+    def deserialize(self, message: BagMessage) -> object:
+        """A message of :meth:`messages` as a rosbags object, by the definition the bag holds for
+        its topic (readers of a bag's content: ``actaim2 bag2dataset``)."""
+        return self._typestore.deserialize_cdr(message.data, self.topics[message.topic].msgtype)
+
     def _raw(self, f: _File, topics: set[str]) -> Iterator[tuple[str, int, bytes]]:
         if f.salvaged is not None:
             names = {cid: c.topic for cid, c in f.salvaged.channels.items()}
