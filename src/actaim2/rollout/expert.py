@@ -48,7 +48,7 @@ INIT, REACH, GRASP, MANIPULATE = 0, 1, 2, 3  # Keypose.phase values (DESIGN.md)
 FLIP = np.diag([-1.0, -1.0, 1.0, 1.0])  # the same grasp with the fingers swapped (turned about the approach axis)
 HANDLE_CLEARANCE = 0.08  # m: obstacle points this close to the handle are ignored (the hand goes there)
 MIN_PROGRESS = 0.36  # fraction of the range a cut-short manipulation must still cover (success: 0.3)
-PUSH_CONTACT = 0.03  # m: the pushed part's points this close to the fingertips' contact point are theirs to touch
+PUSH_CONTACT = 0.02  # m: the pushed part's points this close to the fingertips' contact point are theirs to touch
 TILTED_OPENING = 0.6  # fraction of the full gripper stroke
 FREE_MOVE_CLEARANCE = 0.1  # m: the joint-space move ends this much farther back than the pre-pose
 # Grasp variants per handle kind, in order: the approach turned about the TCP x axis (the

@@ -192,7 +192,7 @@ def add_handle(link: Link, kind: str, anchor: Vec3, normal: Vec3, along: Vec3, r
             link.shapes += [tube(p0, p1, radius, rgba, metal) for p0, p1 in zip(arc[:-1], arc[1:])]
         centre = a + n * h
         link.shapes.append(cylinder(centre, radius, grip_len - 2 * bend, axis_name(u), rgba, metal))
-        return Grasp(tuple(centre), tuple(approach), tuple(closing), h, grip_len - 2 * bend)
+        return Grasp(tuple(centre), tuple(approach), tuple(closing), h, grip_len + 2 * radius)  # span: out to the legs
     if kind == "knob":
         stem = rng.uniform(0.022, 0.032)
         cap_r, cap_len = rng.uniform(0.014, 0.02), rng.uniform(0.018, 0.024)
