@@ -7,7 +7,7 @@ import torch
 from scipy.special import logsumexp, softmax
 from scipy.stats import chisquare, multivariate_normal
 
-from actaim2.models.gumbel import gumbel_max
+from actaim2.models.gumbel import gumbel_max, gumbel_softmax, gumbel_temperature, sample_gumbel
 from actaim2.models.obs_encoder import ObsEncoderConfig
 from actaim2.models.registry import build_selector
 from actaim2.models.selector import cluster_log_posterior
@@ -60,6 +60,29 @@ def test_gumbel_max_draws_follow_softmax_of_logits():
     counts = np.bincount(draws.numpy(), minlength=len(logits))
     expected = softmax(logits.double().numpy()) * len(draws)
     assert chisquare(counts, expected).pvalue > 0.001
+
+
+def test_gumbel_softmax_argmax_follows_softmax_and_hardens_as_the_temperature_falls():
+    logits = torch.tensor([1.5, 0.2, -0.7, 0.0, 2.0, -2.0, 0.5, 1.0])
+    noise = sample_gumbel((100_000, 8), torch.Generator().manual_seed(3))
+    for tau in (1.0, 0.5):
+        omega = gumbel_softmax(torch.log_softmax(logits, -1), tau, noise)
+        assert torch.allclose(omega.sum(-1), torch.ones(len(omega)), atol=1e-5)
+        counts = np.bincount(omega.argmax(-1).numpy(), minlength=8)
+        assert chisquare(counts, 100_000 * softmax(logits.double().numpy())).pvalue > 0.001
+    hard = lambda tau: gumbel_softmax(torch.log_softmax(logits, -1), tau, noise).max(-1).values.mean().item()  # noqa: E731
+    assert hard(0.1) > hard(0.5) > hard(1.0) > hard(5.0)
+    assert hard(0.01) > 0.99
+
+
+def test_temperature_schedule_holds_at_its_end_points():
+    assert gumbel_temperature(0.0) == 1.0
+    assert gumbel_temperature(10.0) == pytest.approx(np.exp(-0.139))
+    crossing = np.log(2.0) / 0.0139  # exp(-0.0139 epoch) = 0.5 at ~49.9 epochs
+    assert gumbel_temperature(crossing - 1.0) > 0.5
+    assert gumbel_temperature(crossing + 1.0) == 0.5 == gumbel_temperature(10_000.0)
+    temps = [gumbel_temperature(e) for e in range(0, 200)]
+    assert all(a >= b for a, b in zip(temps, temps[1:]))
 
 
 @pytest.mark.parametrize("kind", ["cgmvae", "cvae", "vqvae"])

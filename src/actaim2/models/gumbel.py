@@ -1,12 +1,12 @@
-"""Gumbel-max draws of the mode selector's cluster c ~ Multi(pi).
+"""Gumbel draws of the mode selector's cluster c.
 
 The paper's appendix writes the categorical draw as c = one-hot(argmax_i(g_i + log pi_i)) with
-g_i i.i.d. Gumbel(0, 1): the Gumbel-max trick, an exact draw from Multi(pi). The paper then
-relaxes it (Gumbel-softmax, temperature tau) so that gradients can pass through c. In this
-implementation no gradient has to pass through a draw of c: q(c | x, y, O) is computed by
-Bayes' rule and the ELBO takes exact expectations over c (train/elbo.py), so the relaxation and
-its annealed temperature (the authors' max(exp(-0.0139 epoch), 0.5)) have no role left and are
-not kept; the hard draw is what sampling uses.
+g_i i.i.d. Gumbel(0, 1): the Gumbel-max trick, an exact draw from Multi(pi), which sampling
+uses. Its relaxation, the Gumbel-softmax omega_i = softmax((log pi_i + g_i) / tau), lets a
+gradient pass through a draw of c: training uses it on the *generative* path (c -> x ~ p(x|y,c,O)
+-> eps, the path sampling takes; train/elbo.py), with the temperature annealed as in the
+authors' code, tau = max(exp(-0.0139 epoch), 0.5). The ELBO's own c terms need no relaxation:
+q(c | x, y, O) is analytic and their expectation over c is exact.
 """
 from __future__ import annotations
 
@@ -18,6 +18,21 @@ def sample_gumbel(shape: torch.Size | tuple[int, ...], generator: torch.Generato
     """i.i.d. Gumbel(0, 1) noise, -log(-log U), with U kept away from 0 and 1."""
     u = torch.rand(shape, generator=generator, device=device, dtype=dtype)
     return -torch.log(-torch.log(u.clamp(torch.finfo(dtype).tiny, 1.0 - torch.finfo(dtype).eps)))
+
+
+TEMPERATURE_RATE = 0.0139  # per epoch (authors' code)
+TEMPERATURE_FLOOR = 0.5
+
+
+def gumbel_temperature(epoch: float, rate: float = TEMPERATURE_RATE, floor: float = TEMPERATURE_FLOOR) -> float:
+    """The annealed Gumbel-softmax temperature max(exp(-rate * epoch), floor): 1 at epoch 0."""
+    return max(float(torch.exp(torch.tensor(-rate * epoch))), floor)
+
+
+def gumbel_softmax(log_probs: torch.Tensor, temperature: float, gumbel: torch.Tensor) -> torch.Tensor:
+    """Relaxed one-hot draw softmax((log_probs + gumbel) / temperature) over the last axis; its
+    argmax is the Gumbel-max draw with the same noise."""
+    return torch.softmax((log_probs + gumbel) / temperature, dim=-1)
 
 
 def gumbel_max(log_probs: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:

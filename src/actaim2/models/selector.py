@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import torch
 
-from actaim2.models.gumbel import gumbel_max
+from actaim2.models.gumbel import gumbel_max, gumbel_softmax, sample_gumbel
 from actaim2.models.resmlp import GaussianHead
 from actaim2.models.selector_base import ModeSelector, SampleResult, SelectorConfig
 
@@ -54,6 +54,7 @@ class CGMVAEOutput:
     prior_logvar: torch.Tensor
     log_pi: torch.Tensor  # (K,) normalised
     log_qc: torch.Tensor  # (B, K) log q(c | x, y, O)
+    eps_generated: torch.Tensor  # (B, z_dim) decoded along the sampling path, c relaxed (Gumbel-softmax)
 
 
 class CGMVAE(ModeSelector):
@@ -73,6 +74,8 @@ class CGMVAE(ModeSelector):
         return {
             "x": torch.randn(batch, cfg.latent_dim, generator=generator, device=device),
             "y": torch.randn(batch, cfg.y_dim, generator=generator, device=device),
+            "x_prior": torch.randn(batch, cfg.latent_dim, generator=generator, device=device),
+            "gumbel": sample_gumbel((batch, cfg.clusters), generator, device),
         }
 
     def _posteriors(self, flat: torch.Tensor, eps_true: torch.Tensor):
@@ -80,8 +83,11 @@ class CGMVAE(ModeSelector):
         h = torch.nn.functional.gelu(self.embed_eps(eps_true) + self.embed_condition(flat))
         return self.q_x(h), self.q_y(h)
 
-    def forward(self, views: torch.Tensor, eps_true: torch.Tensor, noise: dict[str, torch.Tensor] | None = None) -> CGMVAEOutput:
-        """Posterior path of the ELBO for a batch of (O_init views, standardised z)."""
+    def forward(self, views: torch.Tensor, eps_true: torch.Tensor, noise: dict[str, torch.Tensor] | None = None,
+                temperature: float = 1.0) -> CGMVAEOutput:
+        """Posterior path of the ELBO for a batch of (O_init views, standardised z), and the
+        generative path sampling takes: c relaxed from q(c | x, y, O) at ``temperature``, x drawn
+        from the relaxed mixture of p(x | y, c, O), decoded (its reconstruction trains that path)."""
         tokens, flat = self.condition(views)
         noise = noise if noise is not None else self.draw_noise(len(views), device=views.device)
         (x_mean, x_logvar), (y_mean, y_logvar) = self._posteriors(flat, eps_true)
@@ -89,10 +95,16 @@ class CGMVAE(ModeSelector):
         y = y_mean + torch.exp(0.5 * y_logvar) * noise["y"]
         prior_mean, prior_logvar = self.prior_x(torch.cat([y, flat], dim=-1))
         log_pi = torch.log_softmax(self.pi_logits, dim=-1)
+        log_qc = cluster_log_posterior(x, prior_mean, prior_logvar, log_pi)
+        omega = gumbel_softmax(log_qc, temperature, noise["gumbel"]).unsqueeze(-1)  # (B, K, 1)
+        components = prior_mean + torch.exp(0.5 * prior_logvar) * noise["x_prior"].unsqueeze(1)
+        x_generated = (omega * components).sum(dim=1)
+        # One decoder pass for both paths.
+        decoded = self.decoder(torch.cat([x, x_generated]), torch.cat([tokens, tokens]))
+        eps, eps_generated = decoded.split(len(x))
         return CGMVAEOutput(
-            eps=self.decoder(x, tokens), x=x, x_mean=x_mean, x_logvar=x_logvar, y_mean=y_mean, y_logvar=y_logvar,
-            prior_mean=prior_mean, prior_logvar=prior_logvar, log_pi=log_pi,
-            log_qc=cluster_log_posterior(x, prior_mean, prior_logvar, log_pi),
+            eps=eps, x=x, x_mean=x_mean, x_logvar=x_logvar, y_mean=y_mean, y_logvar=y_logvar,
+            prior_mean=prior_mean, prior_logvar=prior_logvar, log_pi=log_pi, log_qc=log_qc, eps_generated=eps_generated,
         )
 
     @torch.no_grad()

@@ -26,6 +26,9 @@ class ElboWeights:
     x_prior: float = 1.0
     y_prior: float = 1.0
     c_prior: float = 1.0
+    # Not an ELBO term: reconstruction along the sampling path (c relaxed by Gumbel-softmax ->
+    # x ~ p(x | y, c, O) -> eps), so that eps sampled from a cluster decodes like the data.
+    generative: float = 1.0
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,10 @@ the entropy of q(x): the exact mixture prior, no relaxed draw of c needed. (A Co
 of the c term, as the appendix's Gumbel-softmax density suggests, is unbounded as q(c) becomes
 confident: measured 36 nats at initialisation against log 8 = 2.1 for the exact term, a penalty
 on exactly the well-separated clusters mode discovery needs.)
+One more term trains the path that sampling takes (c -> x ~ p(x|y,c,O) -> eps), which the ELBO
+reaches only through the x-prior KL:
+    generative      ||decoder(x_gen, O) - eps||^2, x_gen = sum_k omega_k (mu_k + sigma_k n),
+                    omega ~ Gumbel-softmax(q(c|x,y,O), tau), tau annealed (models/gumbel.py)
 Weights default to 1 (the paper's ELBO); the authors' code used 2 / 3 / 3 (reconstruction /
 Gaussian / categorical), available through the YAML configuration.
 All terms are summed over latent / embedding dimensions and averaged over the batch, so a
@@ -47,10 +51,11 @@ def cgmvae_loss(out: CGMVAEOutput, eps: torch.Tensor, w: ElboWeights) -> tuple[t
     kl_x = (qc * gaussian_kl(out.x_mean.unsqueeze(1), out.x_logvar.unsqueeze(1), out.prior_mean, out.prior_logvar)).sum(-1)
     kl_y = gaussian_kl(out.y_mean, out.y_logvar, torch.zeros_like(out.y_mean), torch.zeros_like(out.y_logvar))
     kl_c = categorical_kl(out.log_qc, out.log_pi)
-    loss = (w.reconstruction * rec + w.x_prior * kl_x + w.y_prior * kl_y + w.c_prior * kl_c).mean()
+    generative = reconstruction(out.eps_generated, eps)
+    loss = (w.reconstruction * rec + w.x_prior * kl_x + w.y_prior * kl_y + w.c_prior * kl_c + w.generative * generative).mean()
     return loss, {
         "reconstruction": rec.mean().item(), "kl_x": kl_x.mean().item(), "kl_y": kl_y.mean().item(),
-        "kl_c": kl_c.mean().item(),
+        "kl_c": kl_c.mean().item(), "generative": generative.mean().item(),
         "clusters_used": int(torch.unique(out.log_qc.argmax(-1)).numel()),
     }
 
@@ -73,17 +78,22 @@ def vqvae_loss(out: VQVAEOutput, eps: torch.Tensor, w: ElboWeights, commitment: 
 
 
 def selector_loss(model: ModeSelector, views: torch.Tensor, eps: torch.Tensor, weights: ElboWeights,
-                  noise: dict[str, torch.Tensor] | None = None) -> tuple[torch.Tensor, torch.Tensor, dict[str, float]]:
-    """(loss, reconstructed eps, metrics) of any selector on (O_init views, standardised z).
+                  noise: dict[str, torch.Tensor] | None = None,
+                  temperature: float = 1.0) -> tuple[torch.Tensor, torch.Tensor, dict[str, float]]:
+    """(loss, reconstructed eps, metrics) of any selector on (O_init views, standardised z);
+    ``temperature`` is the CGMVAE's Gumbel-softmax temperature (models/gumbel.py).
 
     ``model`` may be wrapped in DistributedDataParallel; the reconstruction is returned so the
     joint phase can feed it, detached, to the action predictor without a second forward.
     """
     core = model.module if hasattr(model, "module") else model
-    out = model(views, eps, noise)
     if isinstance(core, CGMVAE):
+        out = model(views, eps, noise, temperature)
         loss, metrics = cgmvae_loss(out, eps, weights)
-    elif isinstance(core, CVAESelector):
+        metrics["temperature"] = temperature
+        return loss, out.eps, metrics
+    out = model(views, eps, noise)
+    if isinstance(core, CVAESelector):
         loss, metrics = cvae_loss(out, eps, weights)
     elif isinstance(core, VQVAESelector):
         loss, metrics = vqvae_loss(out, eps, weights, core.config.commitment)

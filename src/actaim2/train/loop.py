@@ -35,6 +35,7 @@ from actaim2.models.predictor import ActionPredictor, PredictorConfig, proprio_f
 from actaim2.models.registry import build_selector
 from actaim2.models.selector_base import ModeSelector
 from actaim2.models.augment import augment
+from actaim2.models.gumbel import gumbel_temperature
 from actaim2.models.view_geometry import CubePlacement
 from actaim2.train import checkpoint
 from actaim2.train.action_loss import action_loss, action_targets
@@ -88,6 +89,7 @@ class Trainer:
         self.predictor = ActionPredictor(self.predictor_config).to(self.device)
         self.lineage: dict = {"init_from": None, "phases_done": []}
         self.phase_index, self.step, self.optimizer_state = 0, 0, None
+        self.temperature = gumbel_temperature(0.0)  # the CGMVAE's Gumbel-softmax temperature, annealed per epoch
         if init_from is not None:
             self._init_from(init_from)
         else:
@@ -217,6 +219,7 @@ class Trainer:
             batch_items = items[rng.choice(len(items), size=min(cfg.batch_size, len(items)), replace=False)]
             for group in optimizer.param_groups:
                 group["lr"] = learning_rate(self.step, total, cfg.lr, cfg.warmup_fraction, cfg.final_lr_fraction)
+            self.temperature = gumbel_temperature(self.step / steps_per_epoch)
             loss, metrics = self.loss(phase, self.train, rank_slice(batch_items, self.ctx), wrapped, rng)
             optimizer.zero_grad(set_to_none=True)
             loss.backward()
@@ -268,7 +271,7 @@ class Trainer:
         with self._autocast():
             if phase == "selector":
                 views, z = data.selector_batch(items[:, 0], self.device)
-                elbo, _, metrics = selector_loss(selector, views, self.selector.standardise(z), weights)
+                elbo, _, metrics = selector_loss(selector, views, self.selector.standardise(z), weights, temperature=self.temperature)
                 return None, elbo, metrics
             batch = data.keyframe_batch(items, self.device)
             eps_true = self.selector.standardise(batch["z"])
@@ -276,7 +279,7 @@ class Trainer:
             elbo = None
             eps_in = eps_true
             if phase == "joint":
-                elbo, eps_hat, sel_metrics = selector_loss(selector, batch["init_views"], eps_true, weights)
+                elbo, eps_hat, sel_metrics = selector_loss(selector, batch["init_views"], eps_true, weights, temperature=self.temperature)
                 eps_in = eps_hat.detach()
                 metrics.update({f"selector_{k}": v for k, v in sel_metrics.items()})
             views, keypose = self.augment(batch["views"], batch["keypose"], rng)
