@@ -14,9 +14,10 @@ Episodes run over categories x instances (or object folders) and clusters
 for recorders), every episode is one line of a JSONL file, and a summary table (SSR per object
 and cluster) ends the run.
 
-Nothing waits forever: every call has a timeout. Before each episode the servers are awaited with
-backoff (a restarted node comes back); a server that stops answering in the middle of an episode
-fails that episode with the reason, and the run goes on. A goal that times out is cancelled.
+Nothing waits forever: every call has a timeout. Servers are awaited, and calls retried, with
+backoff up to ``server_timeout`` until the episode's first motion (a restarted node comes back);
+a server lost after the arm has moved fails that episode with the reason, and the run goes on
+with the next. A goal that times out is cancelled.
 Ctrl-C (SIGINT) and SIGTERM only set a flag: rclpy's own handler would shut the context down
 before the running goal could be cancelled. The runner then cancels the goal, records the
 episode as interrupted, prints the summary and exits with code 130.
@@ -50,7 +51,7 @@ from actaim2.keypose import Keypose as KeyposeData
 from actaim2.policy.episodes import (EpisodeLog, EpisodeRecord, EpisodeSpec, PhaseRecord, is_success, largest_change,
                                      plan_episodes, summary_table)
 from actaim2.policy.requests import is_transient
-from actaim2.policy.retry import wait_until
+from actaim2.policy.retry import BACKOFF_CAP, Backoff, wait_until
 from actaim2.ros_params import declare_parameters
 from actaim2.runtime import apply_ros_defaults
 from actaim2_policy.grasp_baseline import GraspBaseline
@@ -79,7 +80,9 @@ PARAMETERS = {
     "workspace_center": ([0.75, 0.0, 0.4], "sampler: m, world: the cube the object cloud is taken from"),
     "workspace_half_extent": (0.6, "sampler: m"),
     "samples_per_episode": (20, "sampler: grasp draws before the episode is declared unsampleable"),
-    "server_timeout": (60.0, "s (wall): before each episode, how long the servers are awaited with backoff"),
+    "robot": ("panda", "sampler: robot preset or robot YAML (its reach and hand), as control_node's"),
+    "server_timeout": (60.0, "s (wall): how long servers are awaited and calls retried, with backoff, before an "
+                              "episode's first motion (a restarting node comes back)"),
     "reset_timeout": (60.0, "s (wall) for the /reset_scene answer (loading an object can take a while)"),
     "call_timeout": (10.0, "s (wall) for a /sample_mode or /predict_keypose answer and for a goal's acceptance"),
     "views_timeout": (30.0, "s (wall) for an observation stamped at or after the reset or the end of the last motion"),
@@ -139,8 +142,10 @@ class EpisodeRunner(Node):
         if not self.policy:
             self.create_subscription(PointCloud2, self.p["fused_points_topic"], self._keep("_cloud"), qos_profile_sensor_data)
             self._baseline = GraspBaseline(tuple(float(c) for c in self.p["workspace_center"]),
-                                           float(self.p["workspace_half_extent"]), int(self.p["samples_per_episode"]))
+                                           float(self.p["workspace_half_extent"]), int(self.p["samples_per_episode"]),
+                                           self.p["robot"])
         self._described = False
+        self._moved = False  # the running episode has sent a goal: from then on a lost server fails it
 
     def _keep(self, attribute: str) -> Callable:
         def store(msg) -> None:
@@ -178,11 +183,24 @@ class EpisodeRunner(Node):
         return future.result()
 
     def _call(self, client, request, name: str, timeout: float | None = None):
-        if not client.service_is_ready():
-            raise EpisodeFailure(f"{name} is not available (its node stopped or restarted?)")
-        future = client.call_async(request)
-        return self._wait(future, timeout or float(self.p["call_timeout"]), name, client.service_is_ready,
-                          lambda: client.remove_pending_request(future))
+        """One answer within ``timeout`` (default call_timeout). Before the episode's first motion a
+        lost server is retried with backoff up to server_timeout (a restarting node comes back, and
+        a killed one can still look present to discovery for a while); after it, the episode fails."""
+        timeout = timeout or float(self.p["call_timeout"])
+        deadline = time.monotonic() + float(self.p["server_timeout"])
+        delays = iter(Backoff().delays(float(self.p["server_timeout"])))
+        while True:
+            try:
+                if not client.service_is_ready():
+                    raise EpisodeFailure(f"{name} is not available (its node stopped or restarted?)")
+                future = client.call_async(request)
+                return self._wait(future, timeout, name, client.service_is_ready,
+                                  lambda: client.remove_pending_request(future))
+            except EpisodeFailure as exc:
+                if self._moved or time.monotonic() > deadline:
+                    raise
+                self.get_logger().warning(f"{exc}; retrying", throttle_duration_sec=5.0)
+                self._pause(next(delays, BACKOFF_CAP))
 
     def _servers(self) -> dict[str, Callable[[], bool]]:
         servers = {"/reset_scene (sim_node)": self._reset_client.service_is_ready,
@@ -300,6 +318,7 @@ class EpisodeRunner(Node):
                                   f"cancel of the running /execute_keypose goal unanswered after {CANCEL_WAIT:.0f} s")
 
     def _run_episode(self, spec: EpisodeSpec, record: EpisodeRecord) -> None:
+        self._moved = False
         self._wait_for_servers()
         request = ResetScene.Request(category=spec.category, instance=spec.instance, seed=spec.seed,
                                      dof_fraction=float(self.p["dof_fraction"]), object_path=spec.object_path)
@@ -321,6 +340,7 @@ class EpisodeRunner(Node):
                 keypose, confidence, observed = answer.keypose, float(answer.confidence), stamp_ns(answer.keypose.header.stamp)
             else:
                 keypose, confidence, observed = planned[phase], -1.0, cloud_ns
+            self._moved = True
             result = self._execute(keypose)
             ended = self.get_clock().now().nanoseconds
             record.phases.append(PhaseRecord(phase, keypose_data(keypose).to_json(), confidence, observed / 1e9,

@@ -8,13 +8,17 @@ from sensor_msgs.msg import PointCloud2
 
 from actaim2.data.grasp_sampler import HeuristicGraspSampler
 from actaim2.data.object_cloud import CloudConfig, ObjectCloud, remove_support
+from actaim2.data.random_sampler import SamplingConfig
 from actaim2.keypose import Keypose
+from actaim2.robots import load_robot_spec
 from actaim2_perception.pointcloud2 import from_msg
 
 
 class GraspBaseline:
-    def __init__(self, center: tuple[float, float, float], half_extent: float, draws: int):
-        self._sampler = HeuristicGraspSampler(CloudConfig(center=center, half_extent=half_extent))
+    def __init__(self, center: tuple[float, float, float], half_extent: float, draws: int, robot: str):
+        """``robot``: preset or robot YAML whose reach and hand decide which grasps are candidates."""
+        self._sampler = HeuristicGraspSampler(CloudConfig(center=center, half_extent=half_extent),
+                                              SamplingConfig.for_robot(load_robot_spec(robot)))
         self._draws = draws
 
     def keyposes(self, cloud: PointCloud2, rng: np.random.Generator) -> list[Keypose]:
