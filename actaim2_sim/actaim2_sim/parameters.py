@@ -41,6 +41,8 @@ class SimParameters:
     instance: int
     seed: int
     dof_fraction: float
+    hull_cache: str
+    prepare_objects: str
 
 
 # name -> (default, description); read-only except where noted in DYNAMIC.
@@ -77,6 +79,10 @@ DEFAULTS: dict[str, tuple[object, str]] = {
     "instance": (0, "object instance loaded at start-up"),
     "seed": (0, "placement and sensor-noise seed of the start-up scene"),
     "dof_fraction": (0.5, "start-up DoF position as a fraction of each joint's range (0.5 = half-open)"),
+    "hull_cache": ("", "folder of real objects' convex decompositions (actaim2 prepare-objects --cache); "
+                       "empty: $ACTAIM2_CACHE/hulls or ~/.cache/actaim2/hulls"),
+    "prepare_objects": ("", "an object folder or a folder of object folders whose collision meshes are decomposed "
+                            "into hull_cache at start-up, before the node serves (empty: none; cached meshes are skipped)"),
 }
 DYNAMIC: dict[str, tuple[object, str]] = {
     "hide_robot": (False, "render clouds without the robot (neither drawn nor occluding), as the paper's O_init / O_final"),

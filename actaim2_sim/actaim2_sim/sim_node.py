@@ -30,6 +30,7 @@ forever), and the executor spins a little longer so the clients get their result
 """
 from __future__ import annotations
 
+import os
 import signal
 import threading
 import time
@@ -65,6 +66,7 @@ from actaim2.sim.joint_trajectory import (
 )
 from actaim2.sim.objects.catalog import category_instances, list_categories
 from actaim2.sim.objects.loader import ObjectLoadError
+from actaim2.sim.objects.prepare import find_object_folders, prepare_objects
 from actaim2.sim.sensor_noise import SensorNoise
 from actaim2_perception.pointcloud2 import to_msg as cloud_to_msg
 from actaim2_perception.transforms import StaticTransformPublisher, matrix_to_transform
@@ -122,7 +124,10 @@ class SimNode(Node):
             render_path=p.render_path,
             camera_size=(p.camera_width, p.camera_height),
             noise=SensorNoise.preset(p.sensor_noise, p.rig),
+            hull_cache=Path(p.hull_cache).expanduser() if p.hull_cache else None,
         )
+        if p.prepare_objects:
+            self._prepare_objects(Path(p.prepare_objects).expanduser())
         self.get_logger().info(
             f"render path: {self.env.render_path} ({p.rig} rig, {len(self.env.rig.cameras)} camera(s)); "
             f"physics {p.physics_rate:.0f} Hz, real-time factor {p.real_time_factor or 'as fast as possible'}"
@@ -173,6 +178,16 @@ class SimNode(Node):
         self._wall_last = time.monotonic()
         self._sim_target = self.env.time
         self._loop_timer = self.create_timer(p.tick_period, self._tick, callback_group=loop_group)
+
+    def _prepare_objects(self, path: Path) -> None:
+        """Decompose the collision meshes of the real folders under ``path`` into the hull cache
+        (before serving: never inside /reset_scene). A bad path stops the node (ValueError)."""
+        started = time.monotonic()
+        reports = prepare_objects(find_object_folders(path), self.env.hulls, os.cpu_count() or 1)
+        counts = {k: sum(r.count(k) for r in reports) for k in ("decomposed", "convex", "cached")}
+        self.get_logger().info(f"prepared {len(reports)} object(s) under {path} in {time.monotonic() - started:.1f} s: "
+                               f"meshes {counts['decomposed']} decomposed, {counts['convex']} convex, {counts['cached']} "
+                               f"already cached; {sum(r.hulls for r in reports)} hulls in {self.env.hulls.root}")
 
     # -- static frames ------------------------------------------------------------------------
     def _publish_tf_static(self) -> None:

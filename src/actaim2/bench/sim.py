@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import os
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -29,6 +30,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--frames", type=int, default=10, help="renders per camera measurement")
     parser.add_argument("--paths", nargs="+", default=["sapien", "raycast"], help="render paths to measure")
     parser.add_argument("--camera-rate", type=float, default=5.0, help="ring5 observations per sim second in the loop")
+    parser.add_argument("--objects", type=Path, help="instead: real object folders (a folder of them, or one): prepare cold, "
+                                                     "load warm, hulls, physics rate with the arm moving (actaim2.bench.objects)")
+    parser.add_argument("--workers", type=int, default=2, help="with --objects: decomposition processes")
 
 
 def _waving_arm(env, seconds: float):
@@ -98,6 +102,8 @@ def _bench_path(path: str, args) -> dict[str, float]:
 
 
 def main(args: argparse.Namespace) -> int:
+    if args.objects is not None:
+        return _main_objects(args)
     from actaim2.bench.physics import markdown, run_physics_bench
     from actaim2.sim.render_path import vulkan_device_error
 
@@ -137,4 +143,22 @@ def main(args: argparse.Namespace) -> int:
             if key == "ring5" and not isinstance(result, str):
                 target = f"<= {TARGET_RING5_MS:.0f} ms ({'met' if result[key] <= TARGET_RING5_MS else 'MISSED'})"
             print(f"| {label}, {path} | {value} | {target} |")
+    return 0
+
+
+def _main_objects(args: argparse.Namespace) -> int:
+    from actaim2.bench.objects import markdown, run_objects_bench
+    from actaim2.sim.objects.errors import ObjectLoadError
+    from actaim2.sim.objects.prepare import find_object_folders
+
+    try:
+        folders = find_object_folders(args.objects)
+    except ObjectLoadError as exc:
+        print(f"actaim2 bench sim: {exc}")
+        return 2
+    rows, total = run_objects_bench(folders, args.workers, args.seconds)
+    load = os.getloadavg()
+    print(f"# actaim2 bench sim --objects {args.objects} ({os.cpu_count()} CPUs, load average {load[0]:.1f} {load[1]:.1f} "
+          f"{load[2]:.1f}; physics 240 Hz, {args.seconds:g} s of arm trajectory per object)\n")
+    print(markdown(rows, total, args.workers))
     return 0

@@ -22,7 +22,9 @@ from actaim2.robots import RobotSpec, load_robot_spec
 from actaim2.sim.gripper_action import GripperGoal
 from actaim2.sim.joint_trajectory import ActiveTrajectory, TrajectoryCommand
 from actaim2.sim.objects.catalog import object_folder
-from actaim2.sim.objects.loader import LoadedObject, recommended_front_distance
+from actaim2.sim.objects.hulls import HullCache
+from actaim2.sim.objects.loader import LoadedObject, place
+from actaim2.sim.objects.sizing import WORKSPACE_CENTER
 from actaim2.sim.robot import DriveGains, SimRobot
 from actaim2.sim.scene import SimScene
 from actaim2.sim.success import SUCCESS_FRACTION, dof_success
@@ -31,9 +33,6 @@ if TYPE_CHECKING:
     from actaim2.sim.observe import Observation
     from actaim2.sim.sensor_noise import SensorNoise
 
-# Where objects stand (world): the point the camera rig looks at. Objects are placed with
-# their front 0.42-0.7 m before the robot, so their centres lie within ~0.2 m of this point.
-WORKSPACE_CENTER = np.array([0.75, 0.0, 0.4])
 # Object placement variation drawn from the reset seed: front distance, lateral offset, yaw.
 PLACEMENT_JITTER = (0.03, 0.05, np.deg2rad(5.0))
 # SimEnv.grip's ends: within GRIP_REACHED of the target, or fingers stopped (moving less than
@@ -76,14 +75,18 @@ class SimEnv:
         cache_dir: Path | None = None,
         gains: DriveGains = DriveGains(),
         noise: "SensorNoise | None" = None,
+        hull_cache: Path | None = None,
     ):
         """``cameras``: a rig name of :mod:`actaim2.sim.cameras` (``ring5``, ``azure_kinect``) or
         None for physics only. ``render_path``: ``auto``, ``sapien`` or ``raycast``
         (:mod:`actaim2.sim.render_path`); the scene gets a render system only for ``sapien``.
         ``noise``: a :class:`actaim2.sim.sensor_noise.SensorNoise` (default: the rig's own,
-        ``SensorNoise.preset("rig", cameras)``: the documented sensor for azure_kinect, ideal ring5 cameras)."""
+        ``SensorNoise.preset("rig", cameras)``: the documented sensor for azure_kinect, ideal ring5 cameras).
+        ``hull_cache``: the folder of real objects' convex decompositions (:mod:`actaim2.sim.objects.hulls`;
+        None: the default, ``~/.cache/actaim2/hulls``)."""
         self.spec = load_robot_spec(robot) if isinstance(robot, str) else robot
         self.cache_dir = cache_dir
+        self.hulls = HullCache(hull_cache)
         self.render_path = None
         if cameras is not None:
             from actaim2.sim.render_path import resolve_render_path
@@ -142,6 +145,7 @@ class SimEnv:
         dof_fraction: float | Sequence[float] = 0.5,
         folder: Path | None = None,
         jitter: bool = True,
+        scale: float | None = None,
     ) -> ResetInfo:
         """Load an object (a catalogue ``category``/``instance``, or a PartNet-Mobility style
         ``folder``), place it before the robot, set every DoF to ``dof_fraction`` of its range
@@ -151,16 +155,20 @@ class SimEnv:
         stable state, and ``dof_initial`` reports where it rests, the state success is measured from.
 
         ``seed`` draws the placement jitter (and the cameras' noise); ``jitter=False`` places
-        the object exactly where its recipe says.
+        the object exactly where its recipe says. ``scale`` overrides a real folder's size rule
+        (:mod:`actaim2.sim.objects.sizing`); its ``instance`` is reported as -1.
         """
         if folder is None:
             if category is None:
                 raise ValueError("reset needs a category (and instance) or an object folder")
             folder = object_folder(category, instance, self.cache_dir)
+        else:
+            instance = -1  # a folder is no catalogue instance
         folder = Path(folder)
         rng = np.random.default_rng(seed)
         dx, dy, yaw = (rng.uniform(-j, j) for j in PLACEMENT_JITTER) if jitter else (0.0, 0.0, 0.0)
-        obj = self.sim.load_object(folder, front_distance=recommended_front_distance(folder) + dx, lateral=dy, yaw=yaw)
+        obj = self.sim.load_object(folder, scale=scale, hulls=self.hulls)
+        place(obj, obj.front_distance + dx, dy, yaw)
         fraction = np.broadcast_to(np.asarray(dof_fraction, dtype=float), obj.lower.shape)
         if np.any((fraction < 0.0) | (fraction > 1.0)):
             raise ValueError(f"dof_fraction must be within [0, 1], got {dof_fraction}")

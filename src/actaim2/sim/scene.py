@@ -15,7 +15,8 @@ from pathlib import Path
 import sapien
 
 from actaim2.robots import RobotSpec
-from actaim2.sim.objects.loader import LoadedObject, load_object, place, recommended_front_distance
+from actaim2.sim.objects.hulls import HullCache
+from actaim2.sim.objects.loader import LoadedObject, load_object, place
 from actaim2.sim.robot import DriveGains, SimRobot
 
 GROUND_FRICTION = 0.8
@@ -42,6 +43,7 @@ class SimScene:
             self.scene.add_point_light([0.4, -0.8, 1.6], [0.6, 0.6, 0.6], shadow=False)
         self.robot = SimRobot(self.scene, robot, keep_visuals=render, gains=gains)
         self.object: LoadedObject | None = None
+        self._scale_asked: float | None = None  # the scale argument the current object was loaded with
         self.steps = 0
 
     @property
@@ -61,18 +63,19 @@ class SimScene:
         self.steps += n
 
     def load_object(self, folder: Path, front_distance: float | None = None, lateral: float = 0.0, yaw: float = 0.0,
-                    scale: float = 1.0) -> LoadedObject:
-        """Replace the current object with the one in ``folder`` (see :func:`load_object`); the
-        same object again is only moved (episodes on one object skip the URDF parsing)."""
-        folder = Path(folder)
-        if self.object is not None and self.object.folder == folder and self.object.scale == scale:
-            place(self.object, recommended_front_distance(folder) if front_distance is None else front_distance, lateral, yaw)
+                    scale: float | None = None, hulls: HullCache | None = None) -> LoadedObject:
+        """Replace the current object with the one in ``folder`` (see :func:`load_object`; None:
+        its recommended front distance and scale); the same object at the same scale again is
+        only moved (episodes on one object skip the URDF parsing)."""
+        folder = Path(folder).expanduser()
+        if self.object is not None and self.object.folder == folder and self._scale_asked == scale:
+            place(self.object, self.object.front_distance if front_distance is None else front_distance, lateral, yaw)
             return self.object
         # Load before removing: a folder that fails to load leaves the current scene as it was.
         loaded = load_object(self.scene, folder, front_distance=front_distance, lateral=lateral, yaw=yaw, scale=scale,
-                             keep_visuals=self.render)
+                             keep_visuals=self.render, hulls=hulls)
         self.remove_object()
-        self.object = loaded
+        self.object, self._scale_asked = loaded, scale
         return self.object
 
     def remove_object(self) -> None:

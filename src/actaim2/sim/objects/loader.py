@@ -7,12 +7,24 @@ damping and behaviour (bistable toggle, counterbalanced sash) of :mod:`.dynamics
 URDF's ``<dynamics>`` where given, else the category table (:mod:`.physics_table`). A part
 stays where the robot leaves it if its joint's friction beats its weight, as real ones do.
 
-Placement: the object, at its closed configuration (lower limits), is turned by ``yaw`` and
-moved so that its bounding box's front face is ``front_distance`` in front of the robot base
-(+x of ``world``), centred at ``lateral`` (y) and standing on the floor.
+Real PartNet-Mobility folders go through the same path after :mod:`.partnet` has checked
+them (every failure is an :class:`ObjectLoadError` naming the file and the reason). They are
+keyed by folder name, their ``model_cat`` mapped to the catalogue's names, scaled and set back
+by :mod:`.sizing` (category size, workspace cube), and their collision meshes replaced by the
+convex decompositions of :mod:`.hulls` (one hull per mesh, with a warning, where the cache has
+none). Their links do not collide with each other: PartNet parts interpenetrate at their seams
+(an oven's five buttons share one origin), and PhysX would push them apart. Continuous joints
+stay unlimited in physics; their reported range is :data:`.partnet.CONTINUOUS_RANGE`.
+
+Placement: the object, at rest (every joint at 0, clipped into its limits: the pose it was
+modelled in, closed), is turned by ``yaw`` and moved so that its bounding box's front face is
+``front_distance`` in front of the robot base (+x of ``world``), centred at ``lateral`` (y)
+and standing on the floor.
 """
 from __future__ import annotations
 
+import dataclasses
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,9 +33,16 @@ import sapien
 
 from ..urdf import parse_urdf
 from .dynamics import ObjectDynamics, joint_dynamics
-from .model import Handle, read_handles, read_meta, read_semantics
+from .errors import ObjectLoadError
+from .hulls import HullCache, count_hulls, needs_hulls
+from .mesh import read_mesh
+from .model import Handle, read_handles, read_meta
+from .partnet import CONTINUOUS_RANGE, ObjectFolder, read_object_folder
+from .physics_table import effective_density
+from .sizing import DEFAULT_FRONT_DISTANCE, fit_object
 
-DEFAULT_FRONT_DISTANCE = 0.55  # m, for folders whose meta.json does not recommend one
+LOG = logging.getLogger("actaim2.sim.objects")
+OBJECT_GROUP = (1 << 31, 0x0B7EC7)  # collision groups 2 and 3 of real objects' links: no collision among them
 OBJECT_DENSITY = 500.0  # kg/m^3, wood-like
 OBJECT_FRICTION = 1.0  # static and dynamic, on every object surface
 
@@ -41,6 +60,8 @@ class LoadedObject:
     upper: np.ndarray
     handles: list[Handle]
     scale: float = 1.0
+    front_distance: float = DEFAULT_FRONT_DISTANCE  # the recommended one (meta.json or sizing), before jitter
+    hulls: int = 0  # convex collision shapes
     dynamics: ObjectDynamics | None = None  # joint friction and springs: step() before every physics step
 
     @property
@@ -77,26 +98,27 @@ class LoadedObject:
         return names.index(joint_name)
 
 
-class ObjectLoadError(ValueError):
-    """An object folder that cannot be loaded (missing, no URDF, bad URDF, missing mesh...): the
-    message says which file and why, so a service can answer it instead of crashing."""
-
-
 def load_object(
     scene: sapien.Scene,
     folder: Path,
     front_distance: float | None = None,
     lateral: float = 0.0,
     yaw: float = 0.0,
-    scale: float = 1.0,
+    scale: float | None = None,
     keep_visuals: bool = False,
+    hulls: HullCache | None = None,
 ) -> LoadedObject:
-    """Load ``folder`` (mobility.urdf + meshes) and place it; ``keep_visuals`` needs a render system."""
-    folder = Path(folder)
-    urdf = folder / "mobility.urdf"
-    if not urdf.is_file():
-        raise ObjectLoadError(f"{folder} is not a PartNet-Mobility style object folder: no mobility.urdf")
-    meta = read_meta(folder)
+    """Load ``folder`` (mobility.urdf + meshes) and place it; ``keep_visuals`` needs a render system.
+
+    ``scale`` None: generated folders 1, real ones by :func:`.sizing.fit_object`. ``hulls``:
+    the decomposition cache of real folders' collision meshes (default folder if None)."""
+    info = read_object_folder(folder)
+    folder, urdf = info.folder, info.urdf
+    if info.generated:
+        scale, recommended = (1.0 if scale is None else float(scale)), recommended_front_distance(folder)
+    else:
+        fit = fit_object(info, scale)
+        scale, recommended = fit.scale, fit.front_distance
     loader = scene.create_urdf_loader()
     loader.fix_root_link = True
     loader.scale = scale
@@ -105,23 +127,57 @@ def load_object(
     builders, actor_builders, _ = parse_urdf(loader, urdf, keep_visuals=keep_visuals)
     if len(builders) != 1 or actor_builders:
         raise ObjectLoadError(f"{urdf}: expected one articulation, got {len(builders)} articulations and {len(actor_builders)} free bodies")
+    n_hulls = None if info.generated else _collisions_from_hulls(builders[0], info, hulls or HullCache(), scale)
     articulation = builders[0].build()
-    try:
-        articulation.name = meta.get("anno_id", folder.name)
-        joints = articulation.get_active_joints()
-        if not joints:
-            raise ObjectLoadError(f"{urdf}: the object has no movable joint")
-        limits = np.asarray([j.limit[0] for j in joints], dtype=float)
-        if not np.all(np.isfinite(limits)):
-            raise ObjectLoadError(f"{urdf}: every movable joint needs finite limits (continuous joints are not supported)")
-    except ObjectLoadError:
-        scene.remove_articulation(articulation)  # a refused object leaves nothing behind in the scene
-        raise
-    obj = LoadedObject(folder, articulation.name, meta.get("model_cat", "unknown"), articulation, joints,
-                       limits[:, 0].copy(), limits[:, 1].copy(), read_handles(folder), scale)
-    obj.dynamics = ObjectDynamics(articulation, joints, joint_dynamics(urdf, joints, obj.category, read_semantics(folder)))
-    place(obj, recommended_front_distance(folder) if front_distance is None else front_distance, lateral, yaw)
+    articulation.name = info.object_id
+    joints = articulation.get_active_joints()
+    # SAPIEN's limits (prismatic ones scaled to metres); continuous joints: their reported range
+    limits = np.asarray([j.limit[0] for j in joints], dtype=float) + 0.0  # + 0.0: a "-0.0" limit reads 0
+    limits[~np.isfinite(limits).all(axis=1)] = CONTINUOUS_RANGE
+    n_hulls = sum(len(link.collision_shapes) for link in articulation.links) if n_hulls is None else n_hulls
+    obj = LoadedObject(folder, info.object_id, info.category, articulation, joints, limits[:, 0].copy(),
+                       limits[:, 1].copy(), read_handles(folder), scale, recommended, n_hulls)
+    obj.dynamics = ObjectDynamics(articulation, joints, joint_dynamics(urdf, joints, obj.category, info.semantics))
+    place(obj, recommended if front_distance is None else front_distance, lateral, yaw)
     return obj
+
+
+def _collisions_from_hulls(builder, info: ObjectFolder, hulls: HullCache, scale: float) -> int:
+    """Swap each collision mesh of a real folder's links for its cached convex decomposition
+    (module docstring), give each link its material's density and keep the links from
+    colliding with each other; returns the number of convex shapes."""
+    total, missing, checked = 0, [], {}
+    for lb in builder.link_builders:
+        density = effective_density(info.category, info.semantics.get(lb.name, ""))
+        lb.collision_groups = [lb.collision_groups[0], lb.collision_groups[1], lb.collision_groups[2] | OBJECT_GROUP[0], OBJECT_GROUP[1]]
+        swapped = []
+        for record in lb.collision_records:
+            record.density = density
+            if record.type != "convex_mesh":
+                swapped.append(record)
+                total += 1
+                continue
+            path = Path(record.filename).resolve()
+            if path not in checked:
+                entry = None
+                if needs_hulls(read_mesh(path), np.asarray(record.scale, dtype=float)):
+                    entry = hulls.lookup(path)
+                    if entry is None:
+                        missing.append(path)
+                checked[path] = entry
+            entry = checked[path]
+            if entry is None:
+                swapped.append(record)
+                total += 1
+            else:
+                swapped.append(dataclasses.replace(record, type="multiple_convex_meshes", filename=str(entry)))
+                total += count_hulls(entry)
+        lb.collision_records = swapped
+    if missing:
+        LOG.warning("%s: %d of %d collision meshes have no convex decomposition in %s and are one convex hull each "
+                    "(concave parts such as bar handles become solid): run `actaim2 prepare-objects %s --cache %s`",
+                    info.folder, len(missing), len(checked), hulls.root, info.folder, hulls.root)
+    return total
 
 
 def recommended_front_distance(folder: Path) -> float:
@@ -130,10 +186,10 @@ def recommended_front_distance(folder: Path) -> float:
 
 
 def place(obj: LoadedObject, front_distance: float, lateral: float = 0.0, yaw: float = 0.0) -> None:
-    """Pose the object's root as the module docstring says (measured at the closed state)."""
+    """Pose the object's root as the module docstring says (measured at rest)."""
     art = obj.articulation
     art.set_root_pose(sapien.Pose())
-    obj.set_qpos(obj.lower)
+    obj.set_qpos(np.clip(0.0, obj.lower, obj.upper))
     lo, hi = aabb(art)
     anchor_obj = np.array([lo[0], (lo[1] + hi[1]) / 2, lo[2]])
     anchor_world = np.array([front_distance, lateral, 0.0])
