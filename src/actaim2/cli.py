@@ -24,6 +24,9 @@ COMMANDS: dict[tuple[str, ...], tuple[str, str]] = {
     ("stats",): ("actaim2.data.stats_cli", "statistics of a collected dataset"),
     ("train",): ("actaim2.train.train_cli", "train the policy: mode selector, action predictor, joint phase"),
     ("evaluate",): ("actaim2.eval.evaluate_cli", "SSR and Mode SSR tables of the policy and the baselines in simulation"),
+    ("bag2dataset",): ("actaim2.finetune.bag2dataset_cli", "recorded teleop bags -> a training dataset (keyframes, views, embeddings, labels)"),
+    ("finetune",): ("actaim2.finetune.finetune_cli", "fine-tune a checkpoint's selector and predictor on demonstrations"),
+    ("export-lerobot",): ("actaim2.export.lerobot_cli", "a stored dataset as a LeRobot dataset (format v2.1)"),
     ("launch",): ("actaim2.launch.cli", "start a node graph (sim_panda_ring5, sim_kinova_azure, real_kinova_azure) as processes"),
 }
 
