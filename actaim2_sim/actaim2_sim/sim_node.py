@@ -474,6 +474,7 @@ class SimNode(Node):
             self._abort_goals("scene reset")
             # Every observation published from now on is rendered from the new scene.
             self._next_camera_time = self.env.time
+            self._sim_target = self.env.time  # the reset's settling ran ahead of the clock: continue from there
             response.stamp = sim_time_msg(self.env.time)
         self.get_logger().info(f"scene reset: {info.object_id} (seed {info.seed}, dof_fraction {request.dof_fraction:.2f})")
         response.success = True
