@@ -41,11 +41,13 @@ CONTINUOUS_RANGE = (-np.pi, np.pi)  # reported range of a continuous joint: one 
 
 @dataclass(frozen=True)
 class CollisionMesh:
-    """One ``<collision>`` mesh of a link: the file, its pose in the link frame and its scale."""
+    """One ``<collision>`` of a link: a mesh file (``path``) or a primitive (box, cylinder,
+    sphere: ``path`` None, ``points`` on its surface), its pose in the link frame and scale."""
 
-    path: Path
+    path: Path | None
     origin: np.ndarray  # 4x4
     scale: np.ndarray  # 3 (the URDF's <mesh scale>)
+    points: np.ndarray | None = None  # primitives: corner / rim points in the collision frame
 
 
 @dataclass(frozen=True)
@@ -98,7 +100,7 @@ class ObjectFolder:
 
     def collision_mesh_files(self) -> list[Path]:
         """Every distinct collision mesh file, in URDF order."""
-        return list(dict.fromkeys(m.path for meshes in self.collisions.values() for m in meshes))
+        return list(dict.fromkeys(m.path for meshes in self.collisions.values() for m in meshes if m.path is not None))
 
 
 def category_name(model_cat: str) -> str:
@@ -216,4 +218,22 @@ def _mesh_path(urdf: Path, link: str, element: ET.Element) -> tuple[Path, np.nda
 
 def _collision(urdf: Path, link: str, element: ET.Element) -> CollisionMesh | None:
     found = _mesh_path(urdf, link, element)
-    return None if found is None else CollisionMesh(found[0], _origin(urdf, element), found[1])
+    if found is not None:
+        return CollisionMesh(found[0], _origin(urdf, element), found[1])
+    points = _primitive_points(urdf, element.find("geometry"))
+    return None if points is None else CollisionMesh(None, _origin(urdf, element), np.ones(3), points)
+
+
+def _primitive_points(urdf: Path, geometry: ET.Element | None) -> np.ndarray | None:
+    """Points spanning a box, cylinder (axis z) or sphere: enough for bounding boxes."""
+    if geometry is None:
+        return None
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float)
+    if (box := geometry.find("box")) is not None:
+        return corners * _floats(urdf, box, "size", "", 3) / 2
+    if (cylinder := geometry.find("cylinder")) is not None:
+        radius, length = (float(_floats(urdf, cylinder, key, "", 1)[0]) for key in ("radius", "length"))
+        return corners * np.array([radius, radius, length / 2])
+    if (sphere := geometry.find("sphere")) is not None:
+        return corners * float(_floats(urdf, sphere, "radius", "", 1)[0])
+    return None

@@ -67,7 +67,7 @@ def prepare_objects(folders: list[Path], cache: HullCache, workers: int = 1) -> 
         small: set[Path] = set()
         for meshes in ([] if info.generated else info.collisions.values()):
             for m in meshes:
-                if m.path not in wanted and m.path not in small:
+                if m.path is not None and m.path not in wanted and m.path not in small:
                     if needs_hulls(read_mesh(m.path), np.asarray(m.scale) * scale):
                         wanted.append(m.path)
                     else:

@@ -137,18 +137,21 @@ class _Kinematics:
         for link, meshes in info.collisions.items():
             pieces = []
             for m in meshes:
-                try:
-                    mesh = read_mesh(m.path)
-                except (OSError, ValueError) as error:
-                    raise ObjectLoadError(f"{info.urdf}: link {link!r}: cannot read collision mesh {m.path} ({error})") from None
-                if len(mesh.vertices) == 0:
-                    continue
-                v = convex_hull(mesh).vertices if len(mesh.vertices) >= 4 else mesh.vertices
+                if m.path is None:
+                    v = m.points
+                else:
+                    try:
+                        mesh = read_mesh(m.path)
+                    except (OSError, ValueError) as error:
+                        raise ObjectLoadError(f"{info.urdf}: link {link!r}: cannot read collision mesh {m.path} ({error})") from None
+                    if len(mesh.vertices) == 0:
+                        continue
+                    v = convex_hull(mesh).vertices if len(mesh.vertices) >= 4 else mesh.vertices
                 pieces.append((v * m.scale) @ m.origin[:3, :3].T + m.origin[:3, 3])
             if pieces:
                 self.local[link] = np.concatenate(pieces)
         if not self.local:
-            raise ObjectLoadError(f"{info.urdf}: no link has a collision mesh")
+            raise ObjectLoadError(f"{info.urdf}: no link has collision geometry")
 
     def link_pose(self, link: str, q: dict[str, float]) -> np.ndarray:
         T = np.eye(4)
