@@ -20,7 +20,6 @@ import numpy as np
 import rclpy
 from actaim2_msgs.action import ExecuteKeypose
 from actaim2_msgs.msg import Keypose as KeyposeMsg
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -39,6 +38,7 @@ from actaim2.keypose import Keypose
 from actaim2.geometry import is_unit_quaternion
 from actaim2.perception.cloud_codec import CloudFormatError
 from actaim2.robots import load_robot_spec
+from actaim2.ros_params import declare_parameters
 from actaim2.runtime import apply_ros_defaults
 from actaim2_perception.pointcloud2 import from_msg
 
@@ -89,9 +89,7 @@ PARAMETERS = {
 class ControlNode(Node):
     def __init__(self) -> None:
         super().__init__("control_node")
-        for name, (default, description) in PARAMETERS.items():
-            self.declare_parameter(name, default, ParameterDescriptor(description=description))
-        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        p = declare_parameters(self, PARAMETERS)
         spec = load_robot_spec(p["robot"])
         self._frames = {p["world_frame"], spec.root_link}
         self._default_scaling = float(p["velocity_scaling"])

@@ -7,21 +7,21 @@ simulator's do, so the fusion node needs no file of its own. YAML format: see
 """
 from __future__ import annotations
 
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
 from actaim2.perception.calibration import load_calibration
+from actaim2.ros_params import declare_parameters
 from actaim2_perception.node_runner import run
 from actaim2_perception.transforms import StaticTransformPublisher, matrix_to_transform
+
+
+PARAMETERS = {"calibration_file": ("", "YAML: parent_frame + transforms (child frame -> 4x4)")}
 
 
 class CalibrationPublisher(Node):
     def __init__(self) -> None:
         super().__init__("calibration_publisher")
-        self.declare_parameter(
-            "calibration_file", "", ParameterDescriptor(description="YAML: parent_frame + transforms (child frame -> 4x4)")
-        )
-        path = self.get_parameter("calibration_file").value
+        path = declare_parameters(self, PARAMETERS)["calibration_file"]
         if not path:
             raise ValueError("parameter 'calibration_file' is empty: give the calibration YAML to publish")
         parent, transforms = load_calibration(path)

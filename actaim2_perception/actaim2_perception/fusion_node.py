@@ -23,7 +23,6 @@ from functools import partial
 import numpy as np
 import torch
 from actaim2_msgs.msg import OrthoViews
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.time import Time
@@ -46,6 +45,7 @@ from actaim2.perception.self_filter import RobotSelfFilter
 from actaim2.perception.static_tf import StaticTransformBuffer, UnknownFrameError
 from actaim2.perception.time_sync import ApproximateTimeSync
 from actaim2.robots import load_robot_spec
+from actaim2.ros_params import declare_parameters
 from actaim2_perception.node_runner import run
 from actaim2_perception.pointcloud2 import from_msg, to_msg
 from actaim2_perception.transforms import listen_tf_static
@@ -100,9 +100,7 @@ class ThrottledReporter:
 class FusionNode(Node):
     def __init__(self) -> None:
         super().__init__("fusion_node")
-        for name, (default, description) in PARAMETERS.items():
-            self.declare_parameter(name, default, ParameterDescriptor(description=description))
-        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        p = declare_parameters(self, PARAMETERS)
         torch.set_num_threads(int(p["torch_threads"]))
         self._topics = list(p["cloud_topics"])
         self._world = p["world_frame"]

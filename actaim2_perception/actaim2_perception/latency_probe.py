@@ -13,29 +13,29 @@ import time
 
 import numpy as np
 from actaim2_msgs.msg import OrthoViews
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.time import Time
 from sensor_msgs.msg import JointState, PointCloud2
 
+from actaim2.ros_params import declare_parameters
 from actaim2_perception.node_runner import run
 from actaim2_perception.pointcloud2 import to_msg
 from actaim2_perception.transforms import StaticTransformPublisher, matrix_to_transform
 
 
+PARAMETERS = {
+    "scene_file": ("", "npz written by actaim2.bench.perception.save_scene"),
+    "rate": (10.0, "Hz at which cloud sets are published"),
+    "duration": (8.0, "s of measurement after the node has answered once"),
+    "warmup_timeout": (60.0, "s to wait for the first /ortho_views before giving up"),
+}
+
+
 class LatencyProbe(Node):
     def __init__(self) -> None:
         super().__init__("latency_probe")
-        describe = {
-            "scene_file": ("", "npz written by actaim2.bench.perception.save_scene"),
-            "rate": (10.0, "Hz at which cloud sets are published"),
-            "duration": (8.0, "s of measurement after the node has answered once"),
-            "warmup_timeout": (60.0, "s to wait for the first /ortho_views before giving up"),
-        }
-        for name, (default, text) in describe.items():
-            self.declare_parameter(name, default, ParameterDescriptor(description=text))
-        p = {name: self.get_parameter(name).value for name in describe}
+        p = declare_parameters(self, PARAMETERS)
         scene = np.load(p["scene_file"], allow_pickle=False)
         n = int(scene["n_cameras"])
         self._clouds = [

@@ -18,13 +18,13 @@ import threading
 from pathlib import Path
 
 from builtin_interfaces.msg import Time
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
 from actaim2.bags.playback import PlayOptions, Player, parse_remaps
 from actaim2.bags.qos import replay_choice
 from actaim2.bags.source import BagSource
+from actaim2.ros_params import declare_parameters
 from actaim2_policy.node_main import run
 from actaim2_policy.ros_bags import message_class, rclpy_qos
 
@@ -47,9 +47,7 @@ PARAMETERS = {
 class BagPlayer(Node):
     def __init__(self, stop: threading.Event) -> None:
         super().__init__("bag_player")
-        for name, (default, description) in PARAMETERS.items():
-            self.declare_parameter(name, default, ParameterDescriptor(description=description))
-        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        p = declare_parameters(self, PARAMETERS)
         if not p["bag"]:
             raise ValueError("parameter 'bag' is empty: give a bag directory or an .mcap/.db3 file")
         self.done = threading.Event()

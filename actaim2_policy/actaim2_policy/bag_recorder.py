@@ -28,7 +28,6 @@ from functools import partial
 from pathlib import Path
 
 from actaim2_msgs.msg import EpisodeEvent
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
@@ -38,6 +37,7 @@ from actaim2.bags.metadata import TopicSpec
 from actaim2.bags.qos import record_choice
 from actaim2.bags.recorder import Recorder, RecordSummary, unique_path
 from actaim2.bags.writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE, STORAGES, BagWriter
+from actaim2.ros_params import declare_parameters
 from actaim2_policy.node_main import run
 from actaim2_policy.ros_bags import bag_qos, install_prefixes, message_class, rclpy_qos
 
@@ -67,9 +67,7 @@ PARAMETERS = {
 class BagRecorder(Node):
     def __init__(self, stop: threading.Event) -> None:
         super().__init__("bag_recorder")
-        for name, (default, description) in PARAMETERS.items():
-            self.declare_parameter(name, default, ParameterDescriptor(description=description))
-        p = {name: self.get_parameter(name).value for name in PARAMETERS}
+        p = declare_parameters(self, PARAMETERS)
         del stop  # Ctrl-C needs nothing here: node_main calls finish(), which writes what is queued
         self.done = threading.Event()
         self._storage, self._compression = str(p["storage"]), str(p["compression"])

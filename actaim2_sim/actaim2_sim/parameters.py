@@ -5,10 +5,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
 from actaim2.gripper import POSITION_UNITS
+from actaim2 import ros_params
 from actaim2.sim.cameras import RIGS
 from actaim2.sim.render_path import RENDER_PATHS
 from actaim2.sim.sensor_noise import SENSOR_NOISE_PRESETS
@@ -91,11 +91,8 @@ DYNAMIC: dict[str, tuple[object, str]] = {
 
 def declare_parameters(node: Node) -> SimParameters:
     """Declare every parameter and return the read-only ones, validated."""
-    for name, (default, description) in DEFAULTS.items():
-        node.declare_parameter(name, default, ParameterDescriptor(description=description, read_only=True))
-    for name, (default, description) in DYNAMIC.items():
-        node.declare_parameter(name, default, ParameterDescriptor(description=description))
-    p = SimParameters(**{name: node.get_parameter(name).value for name in DEFAULTS})
+    p = SimParameters(**ros_params.declare_parameters(node, DEFAULTS, read_only=True))
+    ros_params.declare_parameters(node, DYNAMIC)
     choices = {"rig": RIGS, "render_path": RENDER_PATHS, "sensor_noise": SENSOR_NOISE_PRESETS,
                "gripper_position_unit": POSITION_UNITS}
     for name, allowed in choices.items():

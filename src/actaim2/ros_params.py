@@ -40,16 +40,18 @@ def yaml_parameters(path: str | Path, node_name: str) -> dict[str, Any]:
     raise ValueError(f"{path}: no ros__parameters for '{node_name}' (nor for '/**')")
 
 
-def yaml_differences(path: str | Path, node_name: str, table: ParameterTable, complete: bool = True) -> list[str]:
-    """What a parameter file says differently from ``table``: unknown names, other defaults, and
-    (``complete``) names it leaves out. ``use_sim_time`` is rclpy's own and always allowed.
-    Floats compare to 1e-9, ints and floats alike (YAML writes 1.0 where a table says 1)."""
+def yaml_differences(path: str | Path, node_name: str, table: ParameterTable, overlay: bool = False) -> list[str]:
+    """What a parameter file says differently from ``table``: unknown names and, unless it is an
+    ``overlay`` (a file loaded after the defaults to change some, e.g. a rig variant), other
+    defaults and missing names. ``use_sim_time`` is rclpy's own and always allowed. Numbers
+    compare to 1e-9, ints and floats alike (YAML writes 1.0 where a table says 1)."""
     given = yaml_parameters(path, node_name)
     problems = [f"unknown parameter '{n}'" for n in given if n not in table and n != "use_sim_time"]
+    if overlay:
+        return problems
     for name, (default, _) in table.items():
         if name not in given:
-            if complete:
-                problems.append(f"'{name}' missing (default {default!r})")
+            problems.append(f"'{name}' missing (default {default!r})")
         elif not _same(given[name], default):
             problems.append(f"'{name}': YAML {given[name]!r}, declared {default!r}")
     return problems
