@@ -47,7 +47,10 @@ PARAMETERS = {
     "category": ("three_drawer_shelf", "object category passed to /reset_scene"),
     "instance": (0, "object instance (>= 0: the mirror scene loads the same one)"),
     "seed": (0, "placement seed of episode 0; episode k uses seed + k (grasp point too)"),
-    "dof_fraction": (0.5, "initial state of every object DoF as a fraction of its range"),
+    "dof_fraction": (0.5, "initial state of the manipulated part (of every part when others_fraction < 0), as a "
+                          "fraction of its range"),
+    "others_fraction": (-1.0, "initial state of the parts not manipulated; < 0: dof_fraction too (0 with "
+                              "dof_fraction 0.5: the paper's one drawer half-open, the others closed)"),
     "modes": (["pull", "push"], "mode labels, episode k uses modes[k mod n]: pull/push (drawers), open/close (hinged parts)"),
     "joints": ([""], "movable parts to manipulate, episode k uses joints[k mod n]; \"\" = a random part with a handle"),
     "grasp_spread": (1.0, "grasp point along the handle: 0 = its centre, 1 = anywhere up to 3 cm from its ends"),
@@ -136,21 +139,28 @@ class ScriptedTeleop(Node):
         planned (``_started``); run() sends the END, also when this raises EpisodeFailure."""
         p = self.p
         seed = int(p["seed"]) + k
+        rng = np.random.default_rng(seed)
+        # The part and its initial states first, on the mirror (same object, same DoF order).
+        info = self.mirror.reset(p["category"], int(p["instance"]), seed=seed, dof_fraction=float(p["dof_fraction"]))
+        joint = p["joints"][k % len(p["joints"])] or str(rng.choice([h.joint for h in self.mirror.object.handles]))
+        label = p["modes"][k % len(p["modes"])]
+        fractions = []  # empty: every DoF at dof_fraction
+        if float(p["others_fraction"]) >= 0.0:
+            if joint not in info.dof_names:
+                raise EpisodeFailure(f"{info.object_id} has no movable part {joint}: it has {info.dof_names}")
+            fractions = [float(p["dof_fraction"]) if name == joint else float(p["others_fraction"]) for name in info.dof_names]
+            info = self.mirror.reset(p["category"], int(p["instance"]), seed=seed, dof_fraction=fractions)
         request = ResetScene.Request(category=p["category"], instance=int(p["instance"]), seed=seed,
-                                     dof_fraction=float(p["dof_fraction"]))
+                                     dof_fraction=float(p["dof_fraction"]), dof_fractions=fractions)
         future = self._reset.call_async(request)
         reset = self._wait(lambda: future.result() if future.done() else None, float(p["reset_timeout"]), "no /reset_scene answer")
         if not reset.success:
             raise EpisodeFailure(f"/reset_scene refused: {reset.message}")
         self._object_id = reset.object_id
-        info = self.mirror.reset(p["category"], int(p["instance"]), seed=seed, dof_fraction=float(p["dof_fraction"]))
         if info.object_id != reset.object_id or list(info.dof_names) != list(reset.dof_names):
             raise EpisodeFailure(f"the mirror scene ({info.object_id}, {info.dof_names}) is not the simulator's "
                                  f"({reset.object_id}, {list(reset.dof_names)}): is robot the simulator's?")
-        self.mirror.object.set_qpos(np.asarray(reset.dof_initial, float))
-        rng = np.random.default_rng(seed)
-        joint = p["joints"][k % len(p["joints"])] or str(rng.choice([h.joint for h in self.mirror.object.handles]))
-        label = p["modes"][k % len(p["modes"])]
+        self.mirror.object.set_qpos(np.asarray(reset.dof_initial, float))  # where the simulator's parts came to rest
         try:
             task = task_for_label(self.mirror, joint, label)
             demo = self.teleoperator.demo(task, rng)

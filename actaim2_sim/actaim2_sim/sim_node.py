@@ -441,8 +441,9 @@ class SimNode(Node):
     # -- scene --------------------------------------------------------------------------------
     def _on_reset_scene(self, request: ResetScene.Request, response: ResetScene.Response) -> ResetScene.Response:
         response.success = False
-        if not (np.isfinite(request.dof_fraction) and 0.0 <= request.dof_fraction <= 1.0):
-            response.message = f"dof_fraction must be within [0, 1], got {request.dof_fraction}"
+        fractions = list(request.dof_fractions) or request.dof_fraction
+        if not np.all(np.isfinite(fractions) & (np.asarray(fractions) >= 0.0) & (np.asarray(fractions) <= 1.0)):
+            response.message = f"dof_fraction(s) must be within [0, 1], got {fractions}"
             return response
         if request.object_path:
             # A user's PartNet-Mobility folder overrides category/instance (DESIGN.md).
@@ -463,7 +464,7 @@ class SimNode(Node):
             target = dict(category=category, instance=instance)
         with self._lock:
             try:
-                info = self.env.reset(seed=request.seed, dof_fraction=request.dof_fraction, **target)
+                info = self.env.reset(seed=request.seed, dof_fraction=fractions, **target)
             except (ObjectLoadError, ValueError) as error:
                 response.message = f"cannot load {request.object_path or category}: {error}"
                 self.get_logger().error(response.message)
@@ -476,7 +477,8 @@ class SimNode(Node):
             self._next_camera_time = self.env.time
             self._sim_target = self.env.time  # the reset's settling ran ahead of the clock: continue from there
             response.stamp = sim_time_msg(self.env.time)
-        self.get_logger().info(f"scene reset: {info.object_id} (seed {info.seed}, dof_fraction {request.dof_fraction:.2f})")
+        self.get_logger().info(f"scene reset: {info.object_id} (seed {info.seed}, dof_fraction "
+                               f"{np.round(fractions, 2).tolist() if request.dof_fractions else round(request.dof_fraction, 2)})")
         response.success = True
         response.message = f"loaded {info.object_id}"
         response.object_id = info.object_id

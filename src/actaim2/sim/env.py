@@ -169,6 +169,8 @@ class SimEnv:
         dx, dy, yaw = (rng.uniform(-j, j) for j in PLACEMENT_JITTER) if jitter else (0.0, 0.0, 0.0)
         obj = self.sim.load_object(folder, scale=scale, hulls=self.hulls)
         place(obj, obj.front_distance + dx, dy, yaw)
+        if np.ndim(dof_fraction) and len(dof_fraction) != len(obj.lower):
+            raise ValueError(f"{len(dof_fraction)} dof fractions for the {len(obj.lower)} DoFs {obj.dof_names}")
         fraction = np.broadcast_to(np.asarray(dof_fraction, dtype=float), obj.lower.shape)
         if np.any((fraction < 0.0) | (fraction > 1.0)):
             raise ValueError(f"dof_fraction must be within [0, 1], got {dof_fraction}")
