@@ -28,6 +28,7 @@ setup(
             "bag_recorder = actaim2_policy.bag_recorder:main",
             "episode_runner = actaim2_policy.episode_runner:main",
             "policy_node = actaim2_policy.policy_node:main",
+            "service_probe = actaim2_policy.service_probe:main",
         ],
     },
 )

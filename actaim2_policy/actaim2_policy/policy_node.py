@@ -18,8 +18,6 @@ for an inference, and the two services share one group (one inference at a time)
 from __future__ import annotations
 
 import threading
-from pathlib import Path
-
 import numpy as np
 import rclpy
 import torch
@@ -33,7 +31,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from actaim2.perception.config import load_perception_config
 from actaim2.policy.inference import ROLES, PolicyLoadError, PolicyModel
-from actaim2.policy.locate import resolve_checkpoint
+from actaim2.policy.locate import COMMITTED, installed_folders, resolve_checkpoint
 from actaim2.policy.requests import NO_VIEWS, RequestError, check_cluster, check_embedding, check_fresh, check_phase
 from actaim2.policy.views import Views, accept_views
 from actaim2.ros_params import declare_parameters
@@ -44,7 +42,7 @@ VIEWS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)  # as fu
 MODE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 PARAMETERS = {
-    "checkpoint": ("actaim2_ring5", "checkpoint stem (<stem>.json + <stem>.safetensors): a path, or a name looked up in "
+    "checkpoint": (COMMITTED, "checkpoint stem (<stem>.json + <stem>.safetensors): a path, or a name looked up in "
                                     "share/actaim2_policy/checkpoints (the committed checkpoints)"),
     "perception_config": ("ring5", "the serving perception configuration, as fusion_node's: rig name or PerceptionConfig "
                                    "YAML; a checkpoint trained under another one is refused, naming the differing fields"),
@@ -64,16 +62,6 @@ def stamp_msg(ns: int) -> Time:
     return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
-def checkpoint_folders() -> list[Path]:
-    """share/actaim2_policy/checkpoints of the installed package (where setup.py puts the committed ones)."""
-    from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
-
-    try:
-        return [Path(get_package_share_directory("actaim2_policy")) / "checkpoints"]
-    except PackageNotFoundError:
-        return []
-
-
 class PolicyNode(Node):
     def __init__(self) -> None:
         super().__init__("policy_node")
@@ -83,7 +71,7 @@ class PolicyNode(Node):
         self._load_error = ""
         try:
             serving = load_perception_config(p["perception_config"])
-            stem = resolve_checkpoint(p["checkpoint"], checkpoint_folders())
+            stem = resolve_checkpoint(p["checkpoint"], installed_folders())
             self._model = PolicyModel.load(stem, serving, p["device"])
             warm = self._model.warm_up()
         except (PolicyLoadError, FileNotFoundError, ValueError) as exc:

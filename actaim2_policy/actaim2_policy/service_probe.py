@@ -1,0 +1,109 @@
+"""service_probe: the client half of `actaim2 bench services` (benchmark only).
+
+Publishes one set of views from a file (as fusion_node would), waits until policy_node answers
+from them, then times ``calls`` round trips of /sample_mode and of /predict_keypose (phases in
+turn), each from request sent to response received in this process, and writes them to
+``summary_file`` as JSON. It exits by itself.
+"""
+from __future__ import annotations
+
+import json
+import threading
+import time
+
+import numpy as np
+import rclpy
+from actaim2_msgs.msg import OrthoViews
+from actaim2_msgs.srv import PredictKeypose, SampleMode
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.node import Node
+
+from actaim2.keypose import PHASE_NAMES
+from actaim2.ros_params import declare_parameters
+from actaim2.runtime import apply_ros_defaults
+from actaim2_policy.policy_node import VIEWS_QOS
+
+PARAMETERS = {
+    "views_file": ("", "npz: data (V, C, H, W) float32, views, channels, digest (actaim2.bench.services.save_views)"),
+    "calls": (200, "timed round trips per service"),
+    "ready_timeout": (120.0, "s to wait for policy_node to answer from the published views"),
+    "summary_file": ("", "JSON written at the end: milliseconds per call of each service"),
+}
+
+
+class ServiceProbe(Node):
+    def __init__(self) -> None:
+        super().__init__("service_probe")
+        self.p = declare_parameters(self, PARAMETERS)
+        views = np.load(self.p["views_file"], allow_pickle=False)
+        self.views = OrthoViews(height=int(views["data"].shape[2]), width=int(views["data"].shape[3]),
+                                views=[str(v) for v in views["views"]], channels=[str(c) for c in views["channels"]],
+                                data=views["data"].astype(np.float32).ravel().tolist(), config_digest=str(views["digest"]))
+        self.views.header.frame_id = "world"
+        self.views_pub = self.create_publisher(OrthoViews, "/ortho_views", VIEWS_QOS)
+        self.sample = self.create_client(SampleMode, "/sample_mode")
+        self.predict = self.create_client(PredictKeypose, "/predict_keypose")
+
+    def call(self, client, request):
+        """(response, round trip in ms)."""
+        done = threading.Event()
+        started = time.perf_counter()
+        future = client.call_async(request)
+        future.add_done_callback(lambda _: done.set())
+        if not done.wait(30.0):
+            raise RuntimeError(f"no answer from {client.srv_name} within 30 s")
+        return future.result(), 1000.0 * (time.perf_counter() - started)
+
+    def run(self) -> dict:
+        deadline = time.monotonic() + float(self.p["ready_timeout"])
+        if not self.sample.wait_for_service(timeout_sec=float(self.p["ready_timeout"])):
+            raise RuntimeError("/sample_mode did not appear")
+        while True:  # views, then an answer made from them
+            self.views.header.stamp = self.get_clock().now().to_msg()
+            self.views_pub.publish(self.views)
+            first, _ = self.call(self.sample, SampleMode.Request(cluster=-1, seed=0))
+            if first.success:
+                break
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"policy_node did not answer from the views: {first.message}")
+            time.sleep(0.2)
+        sample_ms, predict_ms = [], []
+        for k in range(int(self.p["calls"])):
+            answer, ms = self.call(self.sample, SampleMode.Request(cluster=-1, seed=k))
+            assert answer.success, answer.message
+            sample_ms.append(ms)
+        for k in range(int(self.p["calls"])):
+            request = PredictKeypose.Request(embedding=first.embedding, phase=k % len(PHASE_NAMES), gripper_closed=k % 4 == 3)
+            answer, ms = self.call(self.predict, request)
+            assert answer.success, answer.message
+            predict_ms.append(ms)
+        return {"sample_mode_ms": sample_ms, "predict_keypose_ms": predict_ms, "embedding": len(first.embedding),
+                "served": first.message}
+
+
+def main(args: list[str] | None = None) -> int:
+    apply_ros_defaults()
+    rclpy.init(args=args)
+    node = ServiceProbe()
+    executor = MultiThreadedExecutor(num_threads=2)
+    executor.add_node(node)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
+    code = 0
+    try:
+        summary = node.run()
+        with open(node.p["summary_file"], "w") as f:
+            json.dump(summary, f)
+    except (RuntimeError, AssertionError) as exc:
+        node.get_logger().error(str(exc))
+        code = 1
+    finally:
+        executor.shutdown()
+        spinner.join()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,203 @@
+"""`actaim2 bench services`: the policy services as a client sees them, and the sim loop's pace.
+
+* Round trips: ``policy_node`` and ``service_probe`` run as separate processes (``ros2 run``,
+  a private ROS_DOMAIN_ID, loopback only). The probe publishes one set of views and times
+  ``--calls`` calls of /sample_mode and of /predict_keypose from request to response: p50, p99.
+  The node's resident memory (RSS) is read afterwards.
+* Episodes: ``actaim2 launch sim_panda_ring5`` (SAPIEN, ring5 at 128 px, fusion, control, policy)
+  and ``episode_runner``; wall time per episode from its JSONL records.
+
+The checkpoint: ``--checkpoint``, else the committed one (``actaim2_ring5`` in
+share/actaim2_policy/checkpoints), else an *untrained* checkpoint of the CPU default sizes
+(train/configs/cpu_default.yaml, eps of 1920), written here: its inference costs what a trained
+one of those sizes costs, but its keyposes mean nothing, so episodes then run the heuristic
+sampler instead and the output says so. Targets on 2 cores: /predict_keypose p50 <= 30 ms,
+/sample_mode p50 <= 10 ms, an episode <= 15 s. Other jobs on the machine inflate every figure:
+the load average is printed before and after.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+TARGETS_MS = {"sample_mode": 10.0, "predict_keypose": 30.0}
+EPISODE_TARGET_S = 15.0
+UNTRAINED_EMBEDDING = 1920  # z of the default autoencoder on ring5: 5 cameras x 384
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--checkpoint", default="", help="checkpoint stem (default: the committed one, else untrained CPU-default sizes)")
+    parser.add_argument("--perception", default="ring5", help="serving perception configuration (rig name or YAML)")
+    parser.add_argument("--calls", type=int, default=200, help="timed round trips per service")
+    parser.add_argument("--threads", type=int, default=2, help="policy_node torch_threads")
+    parser.add_argument("--episodes", type=int, default=3, help="sim-loop episodes to time (0: skip)")
+    parser.add_argument("--workdir", type=Path, default=Path("runs/bench_services"), help="logs, records, temporary checkpoint")
+
+
+def untrained_checkpoint(stem: Path, perception) -> Path:
+    """A checkpoint with the CPU default training sizes and random weights (timing only)."""
+    from actaim2.models.predictor import ActionPredictor, PredictorConfig
+    from actaim2.models.registry import build_selector
+    from actaim2.models.selector_base import SelectorConfig
+    from actaim2.perception.ortho_views import VIEWS
+    from actaim2.train import checkpoint
+    from actaim2.train.config import load_config
+
+    train = load_config("cpu_default")
+    shape = {"views": len(VIEWS), "in_channels": len(perception.channels)}
+    selector_dict = train.selector.to_dict()
+    selector_config = SelectorConfig.from_dict({**selector_dict, "z_dim": UNTRAINED_EMBEDDING, "obs": {**selector_dict["obs"], **shape}})
+    predictor_config = PredictorConfig.from_json({**train.predictor, "embedding_dim": UNTRAINED_EMBEDDING,
+                                                  "image_size": perception.resolution, **shape})
+    selector, predictor = build_selector(selector_config), ActionPredictor(predictor_config)
+    meta = {"selector_config": selector_config.to_dict(), "predictor_config": predictor_config.to_json(),
+            "perception": checkpoint.perception_record(perception), "dataset_digest": "untrained (timing only)",
+            "lineage": {"init_from": None, "phases_done": []}}
+    checkpoint.save(stem, checkpoint.policy_tensors(selector, predictor), meta)
+    return stem
+
+
+def save_views(path: Path, perception, seed: int = 0) -> None:
+    """Views of the configuration's layout and digest (values in the renderer's ranges; cost does not depend on them)."""
+    from actaim2.perception.ortho_views import VIEWS
+
+    r = perception.resolution
+    data = np.random.default_rng(seed).uniform(0.0, 1.0, (len(VIEWS), len(perception.channels), r, r)).astype(np.float32)
+    np.savez(path, data=data, views=np.array(VIEWS), channels=np.array(perception.channels), digest=perception.digest())
+
+
+def _ros_env() -> dict:
+    return dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+                ROS_DOMAIN_ID=str(random.SystemRandom().randint(101, 200)))  # away from the tests' 1-100
+
+
+def _start(cmd: list[str], env: dict, log: Path) -> subprocess.Popen:
+    return subprocess.Popen(cmd, env=env, stdout=open(log, "w"), stderr=subprocess.STDOUT, start_new_session=True)
+
+
+def _stop(process: subprocess.Popen, timeout: float = 30.0) -> None:
+    if process.poll() is None:
+        os.killpg(process.pid, signal.SIGINT)
+        try:
+            process.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+
+
+def _rss_mb(pid: int) -> float:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024.0
+    return float("nan")
+
+
+def round_trips(stem: Path, perception_arg: str, perception, args: argparse.Namespace, workdir: Path) -> dict:
+    env = _ros_env()
+    views = workdir / "views.npz"
+    save_views(views, perception)
+    summary = workdir / "round_trips.json"
+    summary.unlink(missing_ok=True)
+    node = _start(["ros2", "run", "actaim2_policy", "policy_node", "--ros-args", "-p", f"checkpoint:={stem}",
+                   "-p", f"perception_config:={perception_arg}", "-p", f"torch_threads:={args.threads}"], env,
+                  workdir / "policy_node.log")
+    try:
+        probe = subprocess.run(["ros2", "run", "actaim2_policy", "service_probe", "--ros-args", "-p", f"views_file:={views}",
+                                "-p", f"calls:={args.calls}", "-p", f"summary_file:={summary}"], env=env,
+                               capture_output=True, text=True, timeout=600)
+        if probe.returncode != 0 or not summary.exists():
+            raise RuntimeError(f"service_probe failed:\n{probe.stdout[-2000:]}{probe.stderr[-2000:]}\n"
+                               f"policy_node log:\n{(workdir / 'policy_node.log').read_text()[-2000:]}")
+        result = json.loads(summary.read_text())
+        result["rss_mb"] = _rss_mb(node.pid)  # `ros2 run` execs the node: same pid
+    finally:
+        _stop(node)
+    return result
+
+
+def episode_times(stem: Path | None, perception_arg: str, args: argparse.Namespace, workdir: Path) -> dict:
+    """Wall time per episode of the sim loop; the learned policy when ``stem``, else the heuristic sampler."""
+    import yaml
+
+    from actaim2.launch.cli import default_graphs_file
+
+    graphs = yaml.safe_load(default_graphs_file().read_text())
+    graph = graphs["sim_panda_ring5"]
+    if stem is not None:
+        for node in graph["nodes"]:
+            if node["executable"] == "policy_node":
+                node["parameters"] = {**node.get("parameters", {}), "checkpoint": str(stem), "perception_config": perception_arg}
+    graphs_file = workdir / "graphs.yaml"
+    graphs_file.write_text(yaml.safe_dump({"sim_panda_ring5": graph}))
+    env = _ros_env()
+    records = workdir / "episodes.jsonl"
+    launch = _start([sys.executable, "-m", "actaim2.cli", "launch", "sim_panda_ring5", "--graphs", str(graphs_file),
+                     "--logs", str(workdir / "graph")], env, workdir / "launch.log")
+    keyposes = "policy" if stem is not None else "sampler"
+    try:
+        runner = subprocess.run(["ros2", "run", "actaim2_policy", "episode_runner", "--ros-args", "-p", f"episodes:={args.episodes}",
+                                 "-p", f"keyposes:={keyposes}", "-p", f"jsonl_file:={records}", "-p", "server_timeout:=180.0"],
+                                env=env, capture_output=True, text=True, timeout=300 + 120 * args.episodes)
+    finally:
+        _stop(launch, timeout=60.0)
+    (workdir / "episode_runner.log").write_text(runner.stdout + runner.stderr)
+    if runner.returncode != 0:
+        raise RuntimeError(f"episode_runner failed (log {workdir / 'episode_runner.log'}):\n{runner.stderr[-2000:]}")
+    rows = [json.loads(line) for line in records.read_text().splitlines()]
+    return {"keyposes": keyposes, "seconds": [r["seconds"] for r in rows], "successes": sum(r["success"] for r in rows),
+            "phases": [len(r["phases"]) for r in rows]}
+
+
+def _ms_row(name: str, values: list[float], target: float) -> str:
+    p50, p99 = np.percentile(values, 50), np.percentile(values, 99)
+    verdict = "met" if p50 <= target else "MISSED"
+    return f"| /{name} round trip | {p50:.1f} ms | {p99:.1f} ms | {len(values)} | p50 <= {target:g} ms: {verdict} |"
+
+
+def main(args: argparse.Namespace) -> int:
+    from actaim2.perception.config import load_perception_config
+    from actaim2.policy.locate import COMMITTED, installed_folders, resolve_checkpoint
+
+    workdir = args.workdir.resolve()
+    workdir.mkdir(parents=True, exist_ok=True)
+    perception = load_perception_config(args.perception)
+    load = os.getloadavg()
+    print(f"# actaim2 bench services ({os.cpu_count()} CPUs, load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}; "
+          f"policy_node torch_threads {args.threads})")
+    trained: Path | None = None
+    try:
+        trained = resolve_checkpoint(args.checkpoint or COMMITTED, installed_folders())
+        stem = trained
+        print(f"checkpoint: {stem}")
+    except FileNotFoundError as exc:
+        if args.checkpoint:
+            print(f"actaim2 bench services: {exc}", file=sys.stderr)
+            return 2
+        stem = untrained_checkpoint(workdir / "untrained_cpu_default", perception)
+        print(f"checkpoint: none committed yet ({exc}); timing an UNTRAINED checkpoint of the CPU default sizes ({stem})")
+    result = round_trips(stem, args.perception, perception, args, workdir)
+    print(f"served: {result['served']}\n")
+    rows = ["| measurement | p50 | p99 | n | target |", "|---|---|---|---|---|",
+            _ms_row("sample_mode", result["sample_mode_ms"], TARGETS_MS["sample_mode"]),
+            _ms_row("predict_keypose", result["predict_keypose_ms"], TARGETS_MS["predict_keypose"]),
+            f"| policy_node RSS after the calls | {result['rss_mb']:.0f} MB | | | |"]
+    if args.episodes > 0:
+        episodes = episode_times(trained, args.perception, args, workdir)
+        seconds = episodes["seconds"]
+        verdict = "met" if np.median(seconds) <= EPISODE_TARGET_S else "MISSED"
+        source = "learned policy" if episodes["keyposes"] == "policy" else "heuristic sampler: no trained checkpoint"
+        rows.append(f"| episode wall time ({source}; phases run {episodes['phases']}, {episodes['successes']} successes) | "
+                    f"{np.median(seconds):.1f} s | max {max(seconds):.1f} s | {len(seconds)} | <= {EPISODE_TARGET_S:g} s: {verdict} |")
+    print("\n".join(rows))
+    load = os.getloadavg()
+    print(f"\nload average at the end: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (other jobs on the machine inflate these numbers)")
+    return 0
