@@ -3,7 +3,7 @@
 A task is (method, object, slot[, cluster]). Slots number an object's samples; slot s has the
 same reset and draw seeds for every method (``evalset.py``). A clustered method with K clusters
 and n samples per cluster uses slots 0..nK-1, slot = repetition * K + cluster; the others use
-slots 0..m-1. Tasks are ordered slot-major, so an interrupted run has covered every object and
+slots 0..m-1 (``SampleCounts`` says how many). Tasks are ordered slot-major, so an interrupted run has covered every object and
 method about equally.
 """
 from __future__ import annotations
@@ -39,20 +39,24 @@ class EvalTask:
 class SampleCounts:
     """Samples per object of each method.
 
-    Data Collection gets ``per_cluster`` samples in each of its 8 pseudo-clusters, as many as
-    ActAIM2 per cluster: its Mode SSR is the yardstick ActAIM2's is compared with, and needs
-    samples in both halves of every pseudo-cluster.
+    ActAIM2 gets ``per_cluster`` samples from each of its K clusters. The baselines with groups
+    get ``baseline_per_group`` per group: VQVAE-RVT per code, Data Collection per pseudo-cluster
+    (its Mode SSR is the yardstick ActAIM2's 2nd mode is compared with, which needs samples in
+    both halves of every group: 2 or more). The others get ``per_object`` samples per object.
     """
 
-    per_cluster: int  # clustered methods: samples from each cluster (code) of each object
-    per_object: int  # the other methods: samples per object
+    per_cluster: int  # ActAIM2: samples from each cluster of each object
+    baseline_per_group: int  # VQVAE-RVT per code, Data Collection per pseudo-cluster
+    per_object: int  # Random, Goal-RVT (goals visited in turn), ActAIM (CVAE)
 
     def of(self, method: str, clusters: int) -> int:
         """Samples per object of ``method`` (``clusters``: its K, 0 when not clustered)."""
-        if METHODS[method].grouping == "cluster":
+        if method == "actaim2":
             return self.per_cluster * clusters
+        if METHODS[method].grouping == "cluster":
+            return self.baseline_per_group * clusters
         if method == "data_collection":
-            return self.per_cluster * PSEUDO_CLUSTERS
+            return self.baseline_per_group * PSEUDO_CLUSTERS
         return self.per_object
 
 
