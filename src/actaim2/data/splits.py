@@ -25,10 +25,10 @@ def split_of(category: str, instance: int) -> str:
 
 def check_no_leak(entries: list[dict]) -> None:
     """Raise if an object is in two splits, or a held-out category shares objects with training."""
-    by_object: dict[tuple[str, int], str] = {}
+    by_object: dict[str, str] = {}  # by object id: real folders all have instance -1
     by_category: dict[str, set[str]] = {}
     for e in entries:
-        key = (e["category"], int(e["instance"]))
+        key = e["object_id"]
         if by_object.setdefault(key, e["split"]) != e["split"]:
             raise ValueError(f"object {key} is in splits {by_object[key]!r} and {e['split']!r}")
         by_category.setdefault(e["category"], set()).add(e["split"])
