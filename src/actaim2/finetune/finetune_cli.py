@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 
@@ -43,6 +42,14 @@ def _losses(block: dict) -> str:
     return ", ".join(parts)
 
 
+def command(args: argparse.Namespace) -> list[str]:
+    """The command that repeats this run, every option spelled out (defaults included): the lineage's."""
+    line = ["actaim2", "finetune", str(args.checkpoint), str(args.dataset), "--out", str(args.out), "--phases", *args.phases,
+            "--epochs", str(args.epochs), "--batch-size", str(args.batch_size), "--lr", str(args.lr),
+            "--heldout", str(args.heldout), "--seed", str(args.seed), "--device", args.device]
+    return line + (["--pretraining-data", str(args.pretraining_data)] if args.pretraining_data else [])
+
+
 def main(args: argparse.Namespace) -> int:
     from actaim2.finetune.clusters import format_table
     from actaim2.finetune.finetune import FinetuneConfig, finetune
@@ -51,7 +58,7 @@ def main(args: argparse.Namespace) -> int:
     config = FinetuneConfig(phases=tuple(args.phases), epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
                             heldout_fraction=args.heldout, seed=args.seed, device=args.device)
     try:
-        report = finetune(args.checkpoint, args.dataset, args.out, config, ["actaim2", *sys.argv[1:]],
+        report = finetune(args.checkpoint, args.dataset, args.out, config, command(args),
                           args.pretraining_data, show_progress=not args.no_progress)
     except (ValueError, FileNotFoundError, CheckpointError) as exc:  # FinetuneError and perception mismatches are ValueErrors
         print(f"actaim2 finetune: {exc}")
