@@ -47,7 +47,8 @@ PARAMETERS = {
     "perception_config": ("ring5", "the serving perception configuration, as fusion_node's: rig name or PerceptionConfig "
                                    "YAML; a checkpoint trained under another one is refused, naming the differing fields"),
     "device": ("auto", "auto (CUDA when present, else CPU) | cpu | cuda"),
-    "torch_threads": (2, "CPU threads for inference"),
+    "torch_threads": (1, "CPU threads for inference; 1 next to the simulator and fusion on 2 cores (a second "
+                         "spinning OpenMP thread made each call 10x slower under load)"),
     "views_topic": ("/ortho_views", "views for the mode selector, and for the predictor unless predictor_views_topic is set"),
     "predictor_views_topic": ("", "views for the action predictor when it was trained with the other robot-filter "
                                   "setting than the selector (fusion_node's alternate_views_topic); empty = views_topic"),

@@ -1,15 +1,18 @@
 """service_probe: the client half of `actaim2 bench services` (benchmark only).
 
 Publishes one set of views from a file (as fusion_node would), waits until policy_node answers
-from them, then times ``calls`` round trips of /sample_mode and of /predict_keypose (phases in
+from them, then times ``calls`` round trips of one service (/predict_keypose: the phases in
 turn), each from request sent to response received in this process, and writes them to
-``summary_file`` as JSON. It exits by itself.
+``summary_file`` as JSON. It exits by itself. One service per run lets the benchmark read the
+node's CPU time per call: with ``node_pid`` the probe reads it from /proc around the timed calls.
 """
 from __future__ import annotations
 
 import json
+import os
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import rclpy
@@ -25,9 +28,11 @@ from actaim2_policy.policy_node import VIEWS_QOS
 
 PARAMETERS = {
     "views_file": ("", "npz: data (V, C, H, W) float32, views, channels, digest (actaim2.bench.services.save_views)"),
-    "calls": (200, "timed round trips per service"),
+    "service": ("predict_keypose", "the service timed: sample_mode | predict_keypose"),
+    "calls": (200, "timed round trips"),
     "ready_timeout": (120.0, "s to wait for policy_node to answer from the published views"),
-    "summary_file": ("", "JSON written at the end: milliseconds per call of each service"),
+    "summary_file": ("", "JSON written at the end: milliseconds per call, the node's CPU milliseconds per call"),
+    "node_pid": (0, "pid of policy_node (same machine) whose CPU time is read around the timed calls; 0 = not read"),
 }
 
 
@@ -35,6 +40,8 @@ class ServiceProbe(Node):
     def __init__(self) -> None:
         super().__init__("service_probe")
         self.p = declare_parameters(self, PARAMETERS)
+        if self.p["service"] not in ("sample_mode", "predict_keypose"):
+            raise ValueError(f"service '{self.p['service']}' is not sample_mode or predict_keypose")
         views = np.load(self.p["views_file"], allow_pickle=False)
         self.views = OrthoViews(height=int(views["data"].shape[2]), width=int(views["data"].shape[3]),
                                 views=[str(v) for v in views["views"]], channels=[str(c) for c in views["channels"]],
@@ -67,18 +74,25 @@ class ServiceProbe(Node):
             if time.monotonic() > deadline:
                 raise RuntimeError(f"policy_node did not answer from the views: {first.message}")
             time.sleep(0.2)
-        sample_ms, predict_ms = [], []
+        timed, cpu = [], self.node_cpu()
         for k in range(int(self.p["calls"])):
-            answer, ms = self.call(self.sample, SampleMode.Request(cluster=-1, seed=k))
+            if self.p["service"] == "sample_mode":
+                answer, ms = self.call(self.sample, SampleMode.Request(cluster=-1, seed=k))
+            else:
+                request = PredictKeypose.Request(embedding=first.embedding, phase=k % len(PHASE_NAMES), gripper_closed=k % 4 == 3)
+                answer, ms = self.call(self.predict, request)
             assert answer.success, answer.message
-            sample_ms.append(ms)
-        for k in range(int(self.p["calls"])):
-            request = PredictKeypose.Request(embedding=first.embedding, phase=k % len(PHASE_NAMES), gripper_closed=k % 4 == 3)
-            answer, ms = self.call(self.predict, request)
-            assert answer.success, answer.message
-            predict_ms.append(ms)
-        return {"sample_mode_ms": sample_ms, "predict_keypose_ms": predict_ms, "embedding": len(first.embedding),
+            timed.append(ms)
+        cpu_ms = 1000.0 * (self.node_cpu() - cpu) / len(timed) if self.p["node_pid"] else float("nan")
+        return {"service": self.p["service"], "ms": timed, "node_cpu_ms": cpu_ms, "embedding": len(first.embedding),
                 "served": first.message}
+
+    def node_cpu(self) -> float:
+        """policy_node's CPU seconds so far (utime + stime), 0 when no pid was given."""
+        if not self.p["node_pid"]:
+            return 0.0
+        fields = Path(f"/proc/{self.p['node_pid']}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 def main(args: list[str] | None = None) -> int:

@@ -2,8 +2,9 @@
 
 * Round trips: ``policy_node`` and ``service_probe`` run as separate processes (``ros2 run``,
   a private ROS_DOMAIN_ID, loopback only). The probe publishes one set of views and times
-  ``--calls`` calls of /sample_mode and of /predict_keypose from request to response: p50, p99.
-  The node's resident memory (RSS) is read afterwards.
+  ``--calls`` calls of /sample_mode, then (a second probe) of /predict_keypose, from request to
+  response: p50, p99. The node's CPU time per call (from /proc, load-independent) and its
+  resident memory (RSS) afterwards are read too.
 * Episodes: ``actaim2 launch sim_panda_ring5`` (SAPIEN, ring5 at 128 px, fusion, control, policy)
   and ``episode_runner``; wall time per episode from its JSONL records.
 
@@ -38,7 +39,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--checkpoint", default="", help="checkpoint stem (default: the committed one, else untrained CPU-default sizes)")
     parser.add_argument("--perception", default="ring5", help="serving perception configuration (rig name or YAML)")
     parser.add_argument("--calls", type=int, default=200, help="timed round trips per service")
-    parser.add_argument("--threads", type=int, default=2, help="policy_node torch_threads")
+    parser.add_argument("--threads", type=int, default=1, help="policy_node torch_threads (its default: 1)")
     parser.add_argument("--episodes", type=int, default=3, help="sim-loop episodes to time (0: skip)")
     parser.add_argument("--workdir", type=Path, default=Path("runs/bench_services"), help="logs, records, temporary checkpoint")
 
@@ -102,23 +103,30 @@ def _rss_mb(pid: int) -> float:
 
 
 def round_trips(stem: Path, perception_arg: str, perception, args: argparse.Namespace, workdir: Path) -> dict:
+    """Per service: round trips (ms) and the node's CPU time per call (ms); the node's RSS (MB)."""
     env = _ros_env()
     views = workdir / "views.npz"
     save_views(views, perception)
-    summary = workdir / "round_trips.json"
-    summary.unlink(missing_ok=True)
     node = _start(["ros2", "run", "actaim2_policy", "policy_node", "--ros-args", "-p", f"checkpoint:={stem}",
                    "-p", f"perception_config:={perception_arg}", "-p", f"torch_threads:={args.threads}"], env,
                   workdir / "policy_node.log")
+    result: dict = {}
     try:
-        probe = subprocess.run(["ros2", "run", "actaim2_policy", "service_probe", "--ros-args", "-p", f"views_file:={views}",
-                                "-p", f"calls:={args.calls}", "-p", f"summary_file:={summary}"], env=env,
-                               capture_output=True, text=True, timeout=600)
-        if probe.returncode != 0 or not summary.exists():
-            raise RuntimeError(f"service_probe failed:\n{probe.stdout[-2000:]}{probe.stderr[-2000:]}\n"
-                               f"policy_node log:\n{(workdir / 'policy_node.log').read_text()[-2000:]}")
-        result = json.loads(summary.read_text())
-        result["rss_mb"] = _rss_mb(node.pid)  # `ros2 run` execs the node: same pid
+        for service in ("sample_mode", "predict_keypose"):
+            summary = workdir / f"{service}.json"
+            summary.unlink(missing_ok=True)
+            probe = subprocess.run(["ros2", "run", "actaim2_policy", "service_probe", "--ros-args", "-p", f"views_file:={views}",
+                                    "-p", f"service:={service}", "-p", f"calls:={args.calls}", "-p", f"summary_file:={summary}",
+                                    "-p", f"node_pid:={node.pid}"],  # `ros2 run` execs the node: the same pid
+                                   env=env, capture_output=True, text=True, timeout=600)
+            if probe.returncode != 0 or not summary.exists():
+                raise RuntimeError(f"service_probe failed:\n{probe.stdout[-2000:]}{probe.stderr[-2000:]}\n"
+                                   f"policy_node log:\n{(workdir / 'policy_node.log').read_text()[-2000:]}")
+            timed = json.loads(summary.read_text())
+            result[service] = timed["ms"]
+            result[f"{service}_cpu_ms"] = timed["node_cpu_ms"]
+            result["served"] = timed["served"]
+        result["rss_mb"] = _rss_mb(node.pid)
     finally:
         _stop(node)
     return result
@@ -157,10 +165,11 @@ def episode_times(stem: Path | None, perception_arg: str, args: argparse.Namespa
             "phases": [len(r["phases"]) for r in rows]}
 
 
-def _ms_row(name: str, values: list[float], target: float) -> str:
+def _ms_row(name: str, values: list[float], cpu_ms: float, target: float) -> str:
     p50, p99 = np.percentile(values, 50), np.percentile(values, 99)
     verdict = "met" if p50 <= target else "MISSED"
-    return f"| /{name} round trip | {p50:.1f} ms | {p99:.1f} ms | {len(values)} | p50 <= {target:g} ms: {verdict} |"
+    return (f"| /{name} round trip | {p50:.1f} ms | {p99:.1f} ms | {cpu_ms:.1f} ms | {len(values)} | "
+            f"p50 <= {target:g} ms: {verdict} |")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -186,17 +195,16 @@ def main(args: argparse.Namespace) -> int:
         print(f"checkpoint: none committed yet ({exc}); timing an UNTRAINED checkpoint of the CPU default sizes ({stem})")
     result = round_trips(stem, args.perception, perception, args, workdir)
     print(f"served: {result['served']}\n")
-    rows = ["| measurement | p50 | p99 | n | target |", "|---|---|---|---|---|",
-            _ms_row("sample_mode", result["sample_mode_ms"], TARGETS_MS["sample_mode"]),
-            _ms_row("predict_keypose", result["predict_keypose_ms"], TARGETS_MS["predict_keypose"]),
-            f"| policy_node RSS after the calls | {result['rss_mb']:.0f} MB | | | |"]
+    rows = ["| measurement | p50 | p99 | node CPU per call | n | target |", "|---|---|---|---|---|---|",
+            *(_ms_row(name, result[name], result[f"{name}_cpu_ms"], TARGETS_MS[name]) for name in ("sample_mode", "predict_keypose")),
+            f"| policy_node RSS after the calls | {result['rss_mb']:.0f} MB | | | | |"]
     if args.episodes > 0:
         episodes = episode_times(trained, args.perception, args, workdir)
         seconds = episodes["seconds"]
         verdict = "met" if np.median(seconds) <= EPISODE_TARGET_S else "MISSED"
         source = "learned policy" if episodes["keyposes"] == "policy" else "heuristic sampler: no trained checkpoint"
         rows.append(f"| episode wall time ({source}; phases run {episodes['phases']}, {episodes['successes']} successes) | "
-                    f"{np.median(seconds):.1f} s | max {max(seconds):.1f} s | {len(seconds)} | <= {EPISODE_TARGET_S:g} s: {verdict} |")
+                    f"{np.median(seconds):.1f} s | max {max(seconds):.1f} s | | {len(seconds)} | <= {EPISODE_TARGET_S:g} s: {verdict} |")
     print("\n".join(rows))
     load = os.getloadavg()
     print(f"\nload average at the end: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (other jobs on the machine inflate these numbers)")
