@@ -33,6 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--objects", type=Path, help="instead: real object folders (a folder of them, or one): prepare cold, "
                                                      "load warm, hulls, physics rate with the arm moving (actaim2.bench.objects)")
     parser.add_argument("--workers", type=int, default=2, help="with --objects: decomposition processes")
+    parser.add_argument("--cache", type=Path, help="with --objects: hull cache to prepare into (default: a new empty one: cold)")
 
 
 def _waving_arm(env, seconds: float):
@@ -156,7 +157,7 @@ def _main_objects(args: argparse.Namespace) -> int:
     except ObjectLoadError as exc:
         print(f"actaim2 bench sim: {exc}")
         return 2
-    rows, total = run_objects_bench(folders, args.workers, args.seconds)
+    rows, total = run_objects_bench(folders, args.workers, args.seconds, args.cache)
     load = os.getloadavg()
     print(f"# actaim2 bench sim --objects {args.objects} ({os.cpu_count()} CPUs, load average {load[0]:.1f} {load[1]:.1f} "
           f"{load[2]:.1f}; physics 240 Hz, {args.seconds:g} s of arm trajectory per object)\n")

@@ -20,12 +20,14 @@ and the loader reads the hulls from the cache:
   says to run ``actaim2 prepare-objects``.
 
 CoACD at its defaults took 17-897 s per shared PartNet-Mobility object on 2 cores. The
-defaults of :class:`HullParams` trade detail for time (measured in README "Simulation"):
-concavity threshold 0.2 (CoACD normalises a mesh to its bounding box, so 0.2 keeps the gap
-behind a 15-cm bar handle, 3.5 cm deep, and a drawer's inside), a coarser manifold
-pre-pass (resolution 20), a shallower tree search (50 iterations, depth 2, 10 nodes), no cap
-on the hull count (capping makes CoACD's merge pass the slowest part), hulls simplified to
-at most 32 vertices (cheaper contacts), and input meshes above 2000 triangles decimated first.
+defaults of :class:`HullParams` trade detail for time (figures in README "Simulation"):
+concavity threshold 0.1 (CoACD normalises a mesh to its bounding box: the gap behind a bar
+handle stays open), a manifold pre-pass at resolution 40 (at 20 it thickened a 2-cm bar by
+1.4 cm, closing most of the gap a fingertip needs; at 40 by 2 mm), a shallower tree search
+(50 iterations, depth 2, 10 nodes), no cap on the hull count (capping made CoACD's merge pass
+the slowest part), hulls simplified to at most 32 vertices (cheaper contacts), and input
+meshes above 2000 triangles decimated first. Meshes below MIN_DECOMPOSED_SIZE and near-convex
+ones skip CoACD, which is most of the saving on PartNet-Mobility objects.
 """
 from __future__ import annotations
 
