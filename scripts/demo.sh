@@ -1,14 +1,17 @@
 #!/usr/bin/env bash
-# The main job: set everything up (idempotent), start the node graph and run sim-loop episodes.
+# The main job: set everything up (idempotent), start the node graph and run sim-loop episodes
+# through the learned policy.
 #   bash scripts/demo.sh [episode_runner parameters as name:=value ...]
-#   e.g. bash scripts/demo.sh episodes:=5 category:=refrigerator
+#   e.g. bash scripts/demo.sh episodes:=5 categories:=[refrigerator] clusters:=[0,1,2]
 #
-# Nodes: sim_node (SAPIEN, ring5 cameras) -> fusion_node (fused, robot-filtered cloud, ortho
-# views) -> control_node (/execute_keypose: Pinocchio IK + Ruckig) <- episode_runner.
-# The episode runner chooses keyposes with the heuristic grasp sampler on the fused cloud: the
-# learned mode selector / action predictor (/sample_mode, /predict_keypose) replace it once the
-# policy is trained; until then this is the most complete real path of the system.
-# Node logs go to runs/demo/<node>.log; Ctrl-C stops everything cleanly.
+# `actaim2 launch sim_panda_ring5` starts sim_node (SAPIEN, Panda, ring5 cameras), fusion_node,
+# control_node and policy_node (the committed checkpoint, actaim2_policy/checkpoints/actaim2_ring5);
+# episode_runner then runs DESIGN.md's loop: /reset_scene -> /sample_mode (a cluster drawn from the
+# learned prior) -> /predict_keypose + /execute_keypose for the four phases -> success from the
+# object's DoF. It prints each episode's outcome and an SSR table at the end.
+# Without a committed checkpoint the runner falls back to the heuristic grasp sampler
+# (keyposes:=sampler, the non-learned baseline) and the output says so.
+# Logs: runs/demo/sim_panda_ring5/<node>.log, runs/demo/episode_runner.log, runs/demo/episodes.jsonl.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bash "$ROOT/scripts/setup.sh"
@@ -16,25 +19,31 @@ bash "$ROOT/scripts/setup.sh"
 . "$ROOT/scripts/env.sh"
 cd "$ROOT"
 LOGS="$ROOT/runs/demo"; mkdir -p "$LOGS"
-pids=()
-stop_nodes() {
-  for pid in "${pids[@]}"; do kill -INT "$pid" 2>/dev/null || true; done
-  for pid in "${pids[@]}"; do
-    for _ in $(seq 50); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
-    kill -KILL "$pid" 2>/dev/null || true
-  done
+
+if checkpoint="$(python -m actaim2.policy.locate)"; then
+  keyposes=policy
+  echo "[demo] keyposes: the learned policy (policy_node) from checkpoint $checkpoint"
+else
+  keyposes=sampler
+  echo "[demo] ######################################################################################"
+  echo "[demo] NO COMMITTED CHECKPOINT: $checkpoint"
+  echo "[demo] This run uses the HEURISTIC GRASP SAMPLER (keyposes:=sampler, the non-learned baseline),"
+  echo "[demo] NOT the learned policy. policy_node starts anyway and refuses every request with the reason."
+  echo "[demo] ######################################################################################"
+fi
+
+actaim2 launch sim_panda_ring5 --logs "$LOGS" >"$LOGS/launch.log" 2>&1 &
+launch_pid=$!
+stop_graph() {  # actaim2 launch stops every node on SIGTERM (a background job here ignores SIGINT)
+  kill -TERM "$launch_pid" 2>/dev/null || true
+  wait "$launch_pid" 2>/dev/null || true
+  echo "[demo] graph stopped (node logs: runs/demo/sim_panda_ring5/)"
 }
-trap stop_nodes EXIT
-start() {  # start <package> <executable> <params file>
-  ros2 run "$1" "$2" --ros-args --params-file "$3" >"$LOGS/$2.log" 2>&1 &
-  pids+=($!)
-  echo "[demo] started $1/$2 (log: runs/demo/$2.log)"
-}
-start actaim2_sim sim_node actaim2_sim/config/sim_node.yaml
-start actaim2_perception fusion_node actaim2_perception/config/fusion_node_sim_ring5.yaml
-start actaim2_control control_node actaim2_control/config/control_node.yaml
-echo "[demo] keyposes: heuristic grasp sampler on /fused_points (the learned policy is not trained yet)"
-runner_args=()
+trap stop_graph EXIT
+echo "[demo] started the graph sim_panda_ring5 (log: runs/demo/launch.log); the runner waits for its services"
+
+runner_args=(-p "keyposes:=$keyposes" -p "jsonl_file:=$LOGS/episodes.jsonl" -p "server_timeout:=180.0")
 for a in "$@"; do runner_args+=(-p "$a"); done
-ros2 run actaim2_sim episode_runner --ros-args --params-file actaim2_sim/config/episode_runner.yaml "${runner_args[@]}" \
-  2>&1 | tee "$LOGS/episode_runner.log"
+ros2 run actaim2_policy episode_runner --ros-args --params-file actaim2_policy/config/episode_runner.yaml \
+  "${runner_args[@]}" 2>&1 | tee "$LOGS/episode_runner.log"
+[ "$keyposes" = policy ] || echo "[demo] reminder: these episodes used the heuristic grasp sampler, not the learned policy ($checkpoint)"

@@ -78,6 +78,11 @@ PARAMETERS = {
         0.1, "s the worker waits for a JointState at or after a cloud's stamp (to interpolate) before extrapolating",
     ),
     "report_period": (10.0, "s: a given bad-input cause is logged at most once per period"),
+    "alternate_views_topic": (
+        "", "also publish views with the other robot-filter setting (robot visible when the configuration hides it, and "
+            "the reverse), stamped with that configuration's digest: for a policy whose selector and predictor were "
+            "trained on different ones (policy_node's predictor_views_topic); empty = not published",
+    ),
     "torch_threads": (1, "CPU threads for fusion and rendering; 1 avoids OpenMP spin contention on small machines"),
 }
 
@@ -108,13 +113,17 @@ class FusionNode(Node):
 
         config = load_perception_config(p["perception_config"])
         self._remove_robot_fused = bool(p["remove_robot_fused"])
-        needs_robot = self._remove_robot_fused or config.remove_robot_views
+        self._alternate = (config.replace(remove_robot_views=not config.remove_robot_views)
+                           if p["alternate_views_topic"] else None)
+        needs_robot = self._remove_robot_fused or config.remove_robot_views or bool(self._alternate)
         self_filter = RobotSelfFilter(load_robot_spec(p["robot"]), config.self_filter_margin) if needs_robot else None
         self._perception = Perception(config, self_filter)
         self._digest = config.digest()
         self._has_preview = {"r", "g", "b", "occupancy"} <= set(config.channels)  # the mosaic needs colour
         # Outputs that wait for /joint_states; /fused_points unfiltered never does.
-        self._waiting = [t for t, filtered in (("/fused_points", self._remove_robot_fused), ("/ortho_views", config.remove_robot_views)) if filtered]
+        self._waiting = [t for t, filtered in (("/fused_points", self._remove_robot_fused), ("/ortho_views", config.remove_robot_views),
+                                               (p["alternate_views_topic"], self._alternate and self._alternate.remove_robot_views))
+                         if filtered]
         self._joint_history = JointStateHistory(float(p["joint_state_history"]), float(p["joint_state_max_extrapolation"]))
         self._joint_wait = float(p["joint_state_wait"])
         self._joint_arrived = threading.Condition()  # guards the history: filled by the executor, read by the worker
@@ -135,6 +144,8 @@ class FusionNode(Node):
 
         self._fused_pub = self.create_publisher(PointCloud2, "/fused_points", qos_profile_sensor_data)
         self._views_pub = self.create_publisher(OrthoViews, "/ortho_views", VIEWS_QOS)
+        self._alternate_pub = (self.create_publisher(OrthoViews, p["alternate_views_topic"], VIEWS_QOS)
+                               if self._alternate else None)
         self._preview_pub = self.create_publisher(Image, "/ortho_views/preview", qos_profile_sensor_data)
         for index, topic in enumerate(self._topics):
             self.create_subscription(PointCloud2, topic, partial(self._on_cloud, index), qos_profile_sensor_data)
@@ -231,7 +242,10 @@ class FusionNode(Node):
         if self._remove_robot_fused and self._fused_pub.get_subscription_count():
             self._fused_pub.publish(to_msg(without_robot.xyz, without_robot.rgb, self._world, stamp))
         views = self._perception.render(without_robot if self._perception.config.remove_robot_views else fused)
-        self._views_pub.publish(self._views_msg(views, stamp))
+        self._views_pub.publish(self._views_msg(views, stamp, self._digest))
+        if self._alternate_pub is not None:
+            other = self._perception.render(without_robot if self._alternate.remove_robot_views else fused)
+            self._alternate_pub.publish(self._views_msg(other, stamp, self._alternate.digest()))
         if self._preview_pub.get_subscription_count() and self._has_preview:
             self._preview_pub.publish(self._preview_msg(views, stamp))
 
@@ -251,7 +265,7 @@ class FusionNode(Node):
         self._perception.self_filter.set_configurations(configurations)
         return True
 
-    def _views_msg(self, views: np.ndarray, stamp) -> OrthoViews:
+    def _views_msg(self, views: np.ndarray, stamp, digest: str) -> OrthoViews:
         config = self._perception.config
         msg = OrthoViews()
         msg.header.stamp = stamp
@@ -264,7 +278,7 @@ class FusionNode(Node):
         msg.data = data
         msg.center.x, msg.center.y, msg.center.z = config.center
         msg.half_extent = float(config.half_extent)
-        msg.config_digest = self._digest
+        msg.config_digest = digest
         return msg
 
     def _preview_msg(self, views: np.ndarray, stamp) -> Image:

@@ -319,7 +319,6 @@ class EpisodeRunner(Node):
 
     def _run_episode(self, spec: EpisodeSpec, record: EpisodeRecord) -> None:
         self._moved = False
-        self._wait_for_servers()
         request = ResetScene.Request(category=spec.category, instance=spec.instance, seed=spec.seed,
                                      dof_fraction=float(self.p["dof_fraction"]), object_path=spec.object_path)
         reset = self._call(self._reset_client, request, "/reset_scene", float(self.p["reset_timeout"]))
@@ -383,6 +382,8 @@ class EpisodeRunner(Node):
                                    spec.cluster)
             started = time.monotonic()
             try:
+                self._wait_for_servers()
+                started = time.monotonic()  # an episode's time starts once its servers are there
                 self._run_episode(spec, record)
             except EpisodeFailure as exc:
                 record.note = str(exc)

@@ -88,7 +88,7 @@ class EpisodeRecord:
     largest_change: float = 0.0  # fraction of the DoF's range
     success: bool = False
     note: str = ""  # why it failed, or where the motion stopped
-    seconds: float = 0.0  # wall time of the episode
+    seconds: float = 0.0  # wall time of the episode, from the moment its servers were all there
 
     def to_json(self) -> dict:
         """Plain JSON types; NaN (not measured) becomes null, as strict JSON readers need."""

@@ -3,6 +3,8 @@ in checkpoint folders: the installed ``share/actaim2_policy/checkpoints``, where
 checkpoints (``actaim2_policy/checkpoints/``) are installed."""
 from __future__ import annotations
 
+import json
+import sys
 from pathlib import Path
 from typing import Sequence
 
@@ -35,3 +37,26 @@ def resolve_checkpoint(name_or_path: str | Path, search_dirs: Sequence[Path] = (
             return paths(stem)[1].with_suffix("")
     looked = ", ".join(str(paths(c)[1]) for c in candidates)
     raise FileNotFoundError(f"checkpoint '{name_or_path}' not found (looked for {looked})")
+
+
+def describe(stem: Path) -> str:
+    """What a checkpoint is, from its JSON alone: path, weights digest, perception digest, training phases."""
+    meta = json.loads(paths(stem)[1].read_text())
+    phases = ", ".join(meta.get("lineage", {}).get("phases_done") or []) or "none (untrained)"
+    return (f"{stem} (weights sha256 {str(meta.get('weights_sha256'))[:16]}, perception configuration "
+            f"{meta.get('perception', {}).get('digest')}, trained phases: {phases})")
+
+
+def main(argv: list[str]) -> int:
+    """``python -m actaim2.policy.locate [NAME_OR_PATH]``: the checkpoint policy_node would load
+    (default: the committed one), described; exit code 1 with the reason when there is none."""
+    try:
+        print(describe(resolve_checkpoint(argv[0] if argv else COMMITTED, installed_folders())))
+    except (FileNotFoundError, ValueError) as exc:
+        print(exc)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1:]))
