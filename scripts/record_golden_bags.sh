@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# Records the golden bags of bags/ and their golden outputs, in one command:
+#   bash scripts/record_golden_bags.sh
+# Re-run it whenever the simulator, the robot models or the perception configuration change
+# what the bags show; then commit bags/sim_azure_kinect_* and tests/bags/golden/*.npz.
+#
+# The cell: sim_node (Kinova j2s6s200, the azure_kinect rig with its sensor realism, SAPIEN
+# rendering, one cloud per sim second) + control_node + scripted_teleop (the scripted
+# teleoperator: one drawer half-open, the others shut, as in the paper's fine-tuning data) +
+# bag_recorder (one bag per episode, zstd chunks, sim-time receive stamps). Episode 0 pulls the
+# top drawer open, episode 1 pushes the middle one shut. The golden outputs are what
+# fusion_node must publish for each bag (computed in-process by actaim2.perception.bag_views:
+# tests/bags/golden.py). Node logs go to runs/golden_bags/.
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+# shellcheck source=/dev/null
+. "$ROOT/scripts/env.sh"
+cd "$ROOT"
+export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$((RANDOM % 100 + 1))}"  # its own DDS domain: no other graph is recorded
+ROBOT=kinova_j2s6s200
+SEED=7
+LOGS="$ROOT/runs/golden_bags"; rm -rf "$LOGS"; mkdir -p "$LOGS"
+TMP="$LOGS/episodes"
+pids=()
+stop_nodes() {
+  for pid in "${pids[@]}"; do kill -INT "$pid" 2>/dev/null || true; done
+  for pid in "${pids[@]}"; do
+    for _ in $(seq 100); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
+    kill -KILL "$pid" 2>/dev/null || true
+  done
+  pids=()
+}
+trap stop_nodes EXIT
+start() {  # start <package> <executable> <parameters...>
+  local package=$1 executable=$2; shift 2
+  ros2 run "$package" "$executable" --ros-args "$@" >"$LOGS/$executable.log" 2>&1 &
+  pids+=($!)
+  echo "[golden] started $package/$executable (log: runs/golden_bags/$executable.log)"
+}
+start actaim2_sim sim_node -p robot:=$ROBOT -p rig:=azure_kinect -p render_path:=sapien -p camera_rate:=1.0 \
+  -p category:=three_drawer_shelf -p instance:=0 -p seed:=$SEED
+start actaim2_control control_node -p robot:=$ROBOT
+start actaim2_policy bag_recorder -p use_sim_time:=true -p output:="$TMP" -p split_by_episode:=true -p compression:=zstd \
+  -p discovery_period:=0.2 -p summary_file:="$LOGS/recorder_summary.json"
+for _ in $(seq 600); do  # the recorder subscribes once sim_node publishes (SAPIEN's first picture takes a while)
+  grep -q "/points2 \[" "$LOGS/bag_recorder.log" && break
+  sleep 0.2
+done
+grep -q "/points2 \[" "$LOGS/bag_recorder.log" || { echo "[golden] the recorder never saw /points2"; exit 1; }
+ros2 run actaim2_control scripted_teleop --ros-args -p robot:=$ROBOT -p episodes:=2 -p seed:=$SEED \
+  -p category:=three_drawer_shelf -p instance:=0 -p dof_fraction:=0.5 -p others_fraction:=0.0 \
+  -p 'modes:=[pull, push]' -p 'joints:=[drawer_2_joint, drawer_1_joint]' 2>&1 | tee "$LOGS/scripted_teleop.log"
+grep -q "2/2 episodes succeeded" "$LOGS/scripted_teleop.log" || { echo "[golden] an episode failed: not replacing the bags"; exit 1; }
+stop_nodes
+rm -rf bags/sim_azure_kinect_pull bags/sim_azure_kinect_push
+mv "$TMP/episode_0000" bags/sim_azure_kinect_pull
+mv "$TMP/episode_0001" bags/sim_azure_kinect_push
+python tests/bags/golden.py write bags/sim_azure_kinect_pull bags/sim_azure_kinect_push
+du -sh bags/sim_azure_kinect_* tests/bags/golden
