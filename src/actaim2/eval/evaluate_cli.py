@@ -111,20 +111,11 @@ def _encoder(args: argparse.Namespace) -> Path | None:
     return args.data / ENCODER_FILE if (args.data / ENCODER_FILE).exists() else None
 
 
-def _gmm(data: Path) -> dict:
-    """Data Collection's sampler per object: collection's GMM fit on the dataset's exploration stage."""
-    from actaim2.data.collect import CollectConfig, fit_gmm_samplers
-    from actaim2.data.storage import DatasetReader
-
-    info = DatasetReader(data).info
-    config = CollectConfig(out=data, objects=(), per_object={}, seed=int(info.get("seed", 0)), robot=info.get("robot", "panda"))
-    return fit_gmm_samplers(config, 0)
-
-
 def main(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from actaim2.eval.checkpoints import describe, perception_of
+    from actaim2.eval.data_collection import data_collection_samplers
     from actaim2.eval.evalset import EVAL_SET_VERSION, catalogue_objects, folder_objects
     from actaim2.eval.results import ResultLog, RunMismatchError, check_run
     from actaim2.eval.tables import report
@@ -150,7 +141,7 @@ def main(args: argparse.Namespace) -> int:
         if not objects:
             raise ValueError("no object to evaluate on: give --splits or --objects")
         render_path = _render_path(perception, args)
-        gmm = _gmm(args.data) if "data_collection" in methods else None
+        gmm = data_collection_samplers(args.data) if "data_collection" in methods else None
         encoder = _encoder(args) if "goal_rvt" in methods else None
         run = {"eval_set_version": EVAL_SET_VERSION, "robot": args.robot, "rig": perception.rig,
                "methods": {m: described.get(m, {}).get("weights_sha256") or ("dataset " + _data_digest(args.data)
