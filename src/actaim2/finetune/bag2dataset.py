@@ -98,7 +98,7 @@ class EpisodeConverter:
 
     def _joints(self, episode: BagEpisode, cloud: Cloud) -> dict[str, float]:
         try:
-            joints = episode.joints.at(cloud.stamp_ns)
+            joints = episode.joints_at(cloud.stamp_ns)
         except JointStateUnavailable as exc:
             raise EpisodeProblem(f"joint positions at the {cloud.camera} cloud of {cloud.stamp_ns / 1e9:.3f} s: {exc}") from exc
         if not self._robot_joints & set(joints):
