@@ -52,6 +52,7 @@ from actaim2.data.grasp_sampler import HeuristicGraspSampler
 from actaim2.data.labelling import EMBEDDINGS_FILE, ENCODER_FILE, fit_default_encoder, label_dataset, visual_labels
 from actaim2.data.object_cloud import CloudConfig, object_cloud
 from actaim2.data.random_sampler import RandomSampler, SamplingConfig
+from actaim2.data.real_objects import FolderObject
 from actaim2.data.splits import TRAIN, check_no_leak, split_of
 from actaim2.data.stats import RUNS_FILE
 from actaim2.data.storage import DatasetReader, DatasetWriter, EncodedTrajectory, encode_trajectory, trajectory_id
@@ -60,6 +61,8 @@ from actaim2.perception.config import CAPTURE_FIELDS, RENDER_PATHS, PerceptionCo
 from actaim2.robots import load_robot_spec
 from actaim2.sim.env import SimEnv
 from actaim2.sim.objects.catalog import object_id
+from actaim2.sim.objects.hulls import HullCache
+from actaim2.sim.objects.prepare import prepare_objects
 
 EXPLORE_SAMPLERS = ("random", "grasp")
 SAMPLER_CODES = {"random": 1, "grasp": 2, "gmm": 3}
@@ -73,7 +76,7 @@ log = logging.getLogger(__name__)
 @dataclass(frozen=True)
 class CollectConfig:
     out: Path
-    objects: tuple[tuple[str, int], ...]
+    objects: tuple[tuple[str, int], ...]  # catalogue (category, instance) pairs
     per_object: dict[str, int]  # sampler -> trajectories per object
     workers: int = 2  # processes; 0 runs in this process (debugging, tests)
     seed: int = 0
@@ -91,6 +94,8 @@ class CollectConfig:
     encoder_trajectories: int = 150
     gmm: GMMConfig = field(default_factory=GMMConfig)
     show_progress: bool = True
+    folders: tuple[FolderObject, ...] = ()  # real PartNet-Mobility folders (actaim2.data.real_objects)
+    hull_cache: Path | None = None  # their convex decompositions (None: the default cache folder)
 
 
 @dataclass(frozen=True)
@@ -103,6 +108,7 @@ class Task:
     index: int  # this sampler's trajectory number on the object
     seed: int
     gmm: GMMAdaptiveSampler | None = None
+    folder: str = ""  # a real object folder (instance -1), else the catalogue's (category, instance)
 
 
 def derive_seed(seed: int, object_id: str, *numbers: int) -> int:
@@ -155,7 +161,8 @@ class TrajectoryCollector:
     def __init__(self, config: CollectConfig):
         self.config = config
         perception = load_perception_config(config.perception)
-        self.env = SimEnv(config.robot, cameras=perception.rig, render_path=config.render_path or perception.render_path)
+        self.env = SimEnv(config.robot, cameras=perception.rig, render_path=config.render_path or perception.render_path,
+                          hull_cache=config.hull_cache)
         robot = RobotModel(self.env.spec)
         checker = CollisionChecker(robot)
         self.planner = KeyposePlanner(robot, checker, IKSolver(robot, checker))
@@ -184,7 +191,8 @@ class TrajectoryCollector:
 
     def _attempt(self, task: Task, sampler: Sampler, rng: np.random.Generator) -> Trajectory | str:
         env = self.env
-        info = env.reset(task.category, task.instance, seed=int(rng.integers(2**31)), dof_fraction=self.config.dof_fraction)
+        info = env.reset(task.category, task.instance, seed=int(rng.integers(2**31)), dof_fraction=self.config.dof_fraction,
+                         folder=task.folder or None)
         observations = {"init": from_sim(env.observe(with_robot=False))}
         joints = {"init": self._joints()}
         cloud = object_cloud(observations["init"], self.cloud_config, rng)
@@ -338,14 +346,21 @@ def stage_tasks(config: CollectConfig, sampler: str, indices: range, gmm: dict |
     With ``gmm`` (object id -> fitted GMMAdaptiveSampler) objects without a sampler are left out.
     """
     tasks = []
-    for category, instance in config.objects:
-        oid = object_id(category, instance)
+    for oid, category, instance, split, folder in collection_objects(config):
         if gmm is not None and oid not in gmm:
             continue
         for k in indices:
-            tasks.append(Task(trajectory_id(oid, sampler, k), category, instance, split_of(category, instance), sampler, k,
-                              derive_seed(config.seed, oid, SAMPLER_CODES[sampler], k), gmm[oid] if gmm is not None else None))
+            tasks.append(Task(trajectory_id(oid, sampler, k), category, instance, split, sampler, k,
+                              derive_seed(config.seed, oid, SAMPLER_CODES[sampler], k), gmm[oid] if gmm is not None else None,
+                              folder))
     return tasks
+
+
+def collection_objects(config: CollectConfig) -> list[tuple[str, str, int, str, str]]:
+    """(object id, category, instance, split, folder) of every object: catalogue ones (folder
+    "") then real folders (instance -1)."""
+    return ([(object_id(c, i), c, i, split_of(c, i), "") for c, i in config.objects]
+            + [(f.object_id, f.category, -1, f.split, f.folder) for f in config.folders])
 
 
 def _label(config: CollectConfig) -> dict:
@@ -394,7 +409,7 @@ def collect(config: CollectConfig) -> dict:
     torch.set_num_threads(1)
     SamplingConfig.for_robot(load_robot_spec(config.robot))  # a robot without reach or hand geometry fails here, not in a worker
     n_gmm = config.per_object.get("gmm", 0)
-    if n_gmm > 0 and not any(split_of(c, i) == TRAIN for c, i in config.objects):
+    if n_gmm > 0 and not any(split == TRAIN for _, _, _, split, _ in collection_objects(config)):
         raise ValueError(f"GMM-adaptive sampling needs visual labels, whose threshold is calibrated on {TRAIN} "
                          f"objects: add some, or collect with --gmm 0")
     perception = collection_perception(config)
@@ -403,7 +418,10 @@ def collect(config: CollectConfig) -> dict:
         check_compatible(DatasetReader(config.out).perception_capture(), perception, CAPTURE_FIELDS, ("dataset", "this collection"))
     config.out.mkdir(parents=True, exist_ok=True)
     info = {"rig": perception.rig, "perception": capture_part(perception), "robot": config.robot, "seed": config.seed,
-            "objects": [list(o) for o in config.objects], "per_object": config.per_object, "dof_fraction": config.dof_fraction}
+            "objects": [list(o) for o in config.objects], "folders": [[f.folder, f.split] for f in config.folders],
+            "per_object": config.per_object, "dof_fraction": config.dof_fraction}
+    if config.folders:  # their hulls before any worker loads them (a cached mesh costs a hash)
+        prepare_objects([Path(f.folder) for f in config.folders], HullCache(config.hull_cache), max(1, config.workers))
     report: dict = {"stages": []}
     with DatasetWriter(config.out, info) as writer:
         explore = [t for s in EXPLORE_SAMPLERS for t in stage_tasks(config, s, range(config.per_object.get(s, 0)))]

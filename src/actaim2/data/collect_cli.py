@@ -4,6 +4,7 @@ Examples:
     actaim2 collect --out data/ds --random 50 --grasp 50 --gmm 50            # the paper's mix, all splits
     actaim2 collect --out data/small --instances-per-category 1 --random 10 --grasp 10 --gmm 5
     actaim2 collect --out data/ds --vgg19-weights vgg19-dcbb9e9d.pth         # E = a user's VGG-19
+    actaim2 collect --out data/pm --objects ~/partnet-mobility --object-splits splits.yaml   # real folders
 
 Interrupt it at any time; the same command resumes where it stopped.
 """
@@ -40,12 +41,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--vgg19-weights", type=Path, help="torchvision VGG-19 state_dict file: use VGG-19 as E")
     parser.add_argument("--encoder-steps", type=int, default=800, help="training steps of the default encoder")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    parser.add_argument("--objects", type=Path, help="real PartNet-Mobility object folders (a folder of them, or one) instead of "
+                                                     "the catalogue (--object adds catalogue objects); hulls prepared first")
+    parser.add_argument("--object-splits", type=Path, help="YAML 'folder name: split' for --objects; other folders split "
+                                                           "by category (actaim2.data.real_objects)")
+    parser.add_argument("--hull-cache", type=Path, help="convex decompositions of --objects (default ~/.cache/actaim2/hulls)")
 
 
 def _objects(args: argparse.Namespace) -> list[tuple[str, int]]:
     from actaim2.sim.objects.catalog import split_instances
 
-    if args.object:
+    if args.object or args.objects is not None:
         objects = []
         for text in args.object:
             category, _, instance = text.partition(":")
@@ -69,16 +75,19 @@ def _objects(args: argparse.Namespace) -> list[tuple[str, int]]:
 def main(args: argparse.Namespace) -> int:
     from actaim2.data.collect import CollectConfig, collect
     from actaim2.data.encoder import ImageEncoder
+    from actaim2.data.real_objects import folder_objects, read_object_splits
     from actaim2.data.splits import split_of
 
     try:
         objects = _objects(args)
         for category, instance in objects:
             split_of(category, instance)  # only catalogued objects: their split must be known
+        splits = read_object_splits(args.object_splits) if args.object_splits is not None else None
+        folders = folder_objects(args.objects, splits) if args.objects is not None else []
     except ValueError as exc:
         print(f"actaim2 collect: {exc}", file=sys.stderr)
         return 2
-    if not objects:
+    if not objects and not folders:
         print("actaim2 collect: no object selected", file=sys.stderr)
         return 2
     if min(args.random, args.grasp, args.gmm) < 0 or args.workers < 0 or args.rounds < 1:
@@ -98,6 +107,7 @@ def main(args: argparse.Namespace) -> int:
         workers=args.workers, seed=args.seed, robot=args.robot, perception=args.perception, render_path=args.render_path or "",
         allow_raycast=args.allow_raycast, rounds=args.rounds,
         encoder=encoder, encoder_steps=args.encoder_steps, show_progress=not args.no_progress,
+        folders=tuple(folders), hull_cache=args.hull_cache,
     )
     try:
         report = collect(config)
