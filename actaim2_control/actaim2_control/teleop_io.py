@@ -28,6 +28,7 @@ from actaim2.keypose import Keypose
 EPISODE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 MODE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 POLL = 0.05  # s between looks at a stop flag while waiting
+ACCEPT_TIMEOUT = 10.0  # s for /execute_keypose to accept a goal
 ACK_TIMEOUT = 2.0  # s a closing teleoperator waits for subscribers to acknowledge its last events
 
 
@@ -72,8 +73,10 @@ class TeleopOutput:
         if not self._execute.server_is_ready() and not self._execute.wait_for_server(timeout_sec=min(timeout, 5.0)):
             return False, "/execute_keypose is not available (is control_node running?)"
         sent = self._execute.send_goal_async(ExecuteKeypose.Goal(keypose=msg, velocity_scaling=float(velocity_scaling)))
-        handle = _wait(sent, timeout)
+        handle = _wait(sent, min(timeout, ACCEPT_TIMEOUT), stop)
         if handle is None or not handle.accepted:
+            if stop is not None and stop.is_set():
+                return False, "interrupted"
             return False, "/execute_keypose did not accept the goal"
         response = _wait(handle.get_result_async(), timeout, stop)
         if response is None:
