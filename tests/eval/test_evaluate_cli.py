@@ -87,8 +87,11 @@ def test_smoke_interrupted_and_resumed(checkpoints, tmp_path) -> None:
     tables = (out / "tables.md").read_text()
     for text in ("Command: `actaim2 evaluate", "weights sha256", "## Table 1", "**Seen objects**", "**Unseen instances**",
                  "**Unseen categories**", "| ActAIM2 |", "| VQVAE-RVT |", "| ActAIM (CVAE) |", "| Goal-RVT (oracle) |",
-                 "| Random sampler |", "## Table 2", "## Acceptance checks", "Where2Act"):
+                 "| Random sampler |", "## Table 2", "## Acceptance checks", "Where2Act", "## Figures"):
         assert text in tables, text
+    for name in ("embeddings_storage_furniture_000.png", "heatmaps_storage_furniture_000.png",
+                 "embeddings_storage_furniture_008.png", "heatmaps_storage_furniture_008.png"):  # --figures 2 (default)
+        assert (out / "figures" / name).stat().st_size > 1000 and f"(figures/{name})" in tables
 
 
 def test_other_checkpoint_refused(checkpoints, tmp_path) -> None:

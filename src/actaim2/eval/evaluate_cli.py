@@ -46,6 +46,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--perception", default="ring5", help="rig configuration when no checkpoint is given (samplers only)")
     parser.add_argument("--render-path", choices=["sapien", "raycast"], help="override the configuration's render path")
     parser.add_argument("--allow-raycast", action="store_true", help="without a Vulkan device, render by ray casting instead of refusing")
+    parser.add_argument("--figures", type=int, default=2, metavar="N",
+                        help="embedding (PCA) and heatmap figures of ActAIM2 on the first N objects (0 = none)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -177,7 +179,13 @@ def main(args: argparse.Namespace) -> int:
     seconds = time.perf_counter() - started
     header = _header(args, preset.name, described, render_path, len(objects), len(tasks), len(log.records), errors, seconds)
     records = [log.records[t.key] for t in tasks if t.key in log.records]
-    (args.out / "tables.md").write_text(report(records, methods, header))
+    text = report(records, methods, header)
+    if args.figures > 0 and "actaim2" in methods:
+        from actaim2.eval.figures import write_figures
+
+        paths = write_figures(EvalWorker(setup), tasks, log.records, args.out / "figures", args.figures)
+        text += "\n## Figures\n\n" + "\n".join(f"![{p.stem}](figures/{p.name})" for p in paths) + "\n"
+    (args.out / "tables.md").write_text(text)
     print(f"{len(todo) - errors} samples run in {seconds:.0f} s ({errors} errors, retried by a rerun); tables: {args.out / 'tables.md'}")
     return 0 if errors == 0 else 1
 

@@ -66,6 +66,7 @@ class Plan:
     repetition: int
     next: Callable[[int, bool], Keypose]  # (phase, gripper closed now) -> keypose
     details: dict = field(default_factory=dict)  # recorded with the result (cluster used, goal, confidences)
+    eps: np.ndarray | None = None  # the interaction mode fed to the predictor (policy rows; not recorded)
 
 
 def pseudo_group(slot: int) -> tuple[int, int]:
@@ -110,7 +111,7 @@ class PolicySource(_Served):
         else:
             group, repetition = pseudo_group(task.slot)
         details = {"cluster": sample.cluster}
-        return Plan(group, repetition, self.keyposes(scene, sample.eps, details), details)
+        return Plan(group, repetition, self.keyposes(scene, sample.eps, details), details, sample.eps)
 
 
 def feasible_goals(info: ResetInfo) -> list[tuple[str, int]]:
@@ -159,8 +160,8 @@ class GoalSource(_Served):
         init, final = self.encoder.encode([scene.init_pictures, goal_pictures(scene.env, scene.info, dof, direction)])
         with torch.no_grad():
             eps = self.model.selector.standardise(torch.from_numpy(np.asarray(init - final, np.float32))[None])[0]
-        details = {"goal": [dof, direction]}
-        return Plan(g, task.slot // len(goals), self.keyposes(scene, eps.cpu().numpy(), details), details)
+        details, eps = {"goal": [dof, direction]}, eps.cpu().numpy()
+        return Plan(g, task.slot // len(goals), self.keyposes(scene, eps, details), details, eps)
 
 
 class SamplerSource:
