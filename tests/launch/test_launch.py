@@ -86,7 +86,7 @@ def launch(graphs: Path, graph: str, logs: Path) -> subprocess.Popen:
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
 
 
-def test_actaim2_launch_starts_every_node_and_ctrl_c_stops_them_all(tmp_path):
+def test_actaim2_launch_starts_every_node_and_ctrl_c_stops_them_all(tmp_path, ros_context):
     graphs = tmp_path / "graphs.yaml"
     calibration = "$(find-pkg-share actaim2_perception)/config/azure_kinect_calibration.yaml"
     graphs.write_text(
@@ -95,8 +95,7 @@ def test_actaim2_launch_starts_every_node_and_ctrl_c_stops_them_all(tmp_path):
         f"    - {{package: actaim2_perception, executable: calibration_publisher, name: calib_b, parameters: {{calibration_file: '{calibration}'}},"
         " remappings: {/tf_static: /tf_static_b}}\n")
     proc = launch(graphs, "pair", tmp_path / "logs")
-    rclpy.init()
-    node = Node("launch_probe")
+    node = Node("launch_probe")  # in the session's context: another test may have initialised rclpy already
     try:
         got = {"/tf_static": [], "/tf_static_b": []}
         for topic, inbox in got.items():
@@ -107,7 +106,6 @@ def test_actaim2_launch_starts_every_node_and_ctrl_c_stops_them_all(tmp_path):
         assert {"calib_a", "calib_b"} <= names, names
     finally:
         node.destroy_node()
-        rclpy.shutdown()
     os.killpg(proc.pid, signal.SIGINT)
     out, _ = proc.communicate(timeout=30)
     assert proc.returncode == 0, out
