@@ -9,8 +9,6 @@ import sys
 from pathlib import Path
 
 import pytest
-import rclpy
-from rclpy.node import Node
 from tf2_msgs.msg import TFMessage
 
 from actaim2.launch.cli import command_lines, default_graphs_file, share_dir
@@ -86,28 +84,26 @@ def launch(graphs: Path, graph: str, logs: Path) -> subprocess.Popen:
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
 
 
-def test_actaim2_launch_starts_every_node_and_ctrl_c_stops_them_all(tmp_path, ros_context):
+def test_actaim2_launch_starts_every_node_and_ctrl_c_stops_them_all(tmp_path, ros_node):
     graphs = tmp_path / "graphs.yaml"
     calibration = "$(find-pkg-share actaim2_perception)/config/azure_kinect_calibration.yaml"
+    # Both publishers remapped: a latched world -> camera_base on /tf_static would reach later tests.
     graphs.write_text(
         "pair:\n  nodes:\n"
-        f"    - {{package: actaim2_perception, executable: calibration_publisher, name: calib_a, parameters: {{calibration_file: '{calibration}'}}}}\n"
+        f"    - {{package: actaim2_perception, executable: calibration_publisher, name: calib_a, parameters: {{calibration_file: '{calibration}'}},"
+        " remappings: {/tf_static: /tf_static_a}}\n"
         f"    - {{package: actaim2_perception, executable: calibration_publisher, name: calib_b, parameters: {{calibration_file: '{calibration}'}},"
         " remappings: {/tf_static: /tf_static_b}}\n")
+    got = {"/tf_static_a": [], "/tf_static_b": []}
+    for topic, inbox in got.items():
+        ros_node.create_subscription(TFMessage, topic, inbox.append, TF_STATIC_LISTENER_QOS)
     proc = launch(graphs, "pair", tmp_path / "logs")
-    node = Node("launch_probe")  # in the session's context: another test may have initialised rclpy already
     try:
-        got = {"/tf_static": [], "/tf_static_b": []}
-        for topic, inbox in got.items():
-            node.create_subscription(TFMessage, topic, inbox.append, TF_STATIC_LISTENER_QOS)
-        assert wait_for(lambda: (rclpy.spin_once(node, timeout_sec=0.1), all(got.values()))[1], 60.0), \
-            (proc.poll(), {k: len(v) for k, v in got.items()})
-        names = set(node.get_node_names())
-        assert {"calib_a", "calib_b"} <= names, names
+        assert wait_for(lambda: all(got.values()), 60.0), (proc.poll(), {k: len(v) for k, v in got.items()})
+        assert wait_for(lambda: {"calib_a", "calib_b"} <= set(ros_node.get_node_names()), 30.0), ros_node.get_node_names()
     finally:
-        node.destroy_node()
-    os.killpg(proc.pid, signal.SIGINT)
-    out, _ = proc.communicate(timeout=30)
+        os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C, as a user would (also after a failed assertion: no node left behind)
+        out, _ = proc.communicate(timeout=30)
     assert proc.returncode == 0, out
     assert "calib_a stopped" in out and "calib_b stopped" in out
     assert (tmp_path / "logs" / "pair" / "calib_a.log").read_text()
