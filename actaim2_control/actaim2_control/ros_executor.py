@@ -25,7 +25,6 @@ from typing import Callable
 import numpy as np
 from builtin_interfaces.msg import Duration
 from control_msgs.action import FollowJointTrajectory, GripperCommand
-from rclpy.action import ActionClient
 from rclpy.callback_groups import CallbackGroup
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -36,6 +35,8 @@ from actaim2.control.executor import StepResult
 from actaim2.control.trajectory import JointPlanner, JointTrajectory, Limits, State, sample
 from actaim2.gripper import gripper_geometry
 from actaim2.robots import RobotSpec
+
+from actaim2_control.action_client import LockedActionClient
 
 POLL = 0.01  # s between checks while waiting
 FEEDBACK_PERIOD = 0.1  # s between progress reports while the arm moves
@@ -69,8 +70,8 @@ class RosExecutor:
         self._settings = settings
         self._gripper_geometry = gripper_geometry(spec)
         self._gripper_geometry.to_unit(0.0, settings.gripper_position_unit)  # refuses an unknown unit at start-up
-        self._arm = ActionClient(node, FollowJointTrajectory, settings.arm_action, callback_group=group)
-        self._gripper = ActionClient(node, GripperCommand, settings.gripper_action, callback_group=group)
+        self._arm = LockedActionClient(node, FollowJointTrajectory, settings.arm_action, callback_group=group)
+        self._gripper = LockedActionClient(node, GripperCommand, settings.gripper_action, callback_group=group)
         self._topic = node.create_publisher(JointTrajectoryMsg, settings.jtc_topic, 10)
         node.create_subscription(JointState, "/joint_states", self._on_joint_states, 10, callback_group=group)
         self._stopper = JointPlanner(len(spec.arm_joints))

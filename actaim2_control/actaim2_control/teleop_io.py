@@ -18,12 +18,13 @@ import time
 from actaim2_msgs.action import ExecuteKeypose
 from actaim2_msgs.msg import EpisodeEvent, InteractionMode
 from actaim2_msgs.msg import Keypose as KeyposeMsg
-from rclpy.action import ActionClient
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from actaim2.keypose import Keypose
+
+from actaim2_control.action_client import LockedActionClient
 
 EPISODE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 MODE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -40,7 +41,7 @@ class TeleopOutput:
         self._world = world_frame
         self._episode_pub = node.create_publisher(EpisodeEvent, "/episode", EPISODE_QOS)
         self._mode_pub = node.create_publisher(InteractionMode, "/interaction_mode", MODE_QOS)
-        self._execute = ActionClient(node, ExecuteKeypose, "/execute_keypose")
+        self._execute = LockedActionClient(node, ExecuteKeypose, "/execute_keypose")
 
     def episode_event(self, episode: int, start: bool, object_id: str, success: bool = False, note: str = "") -> None:
         msg = EpisodeEvent(episode=int(episode), event=EpisodeEvent.START if start else EpisodeEvent.END,

@@ -22,7 +22,7 @@ still under way are dropped, so a held key (auto-repeat) moves the hand at the s
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
@@ -161,8 +161,7 @@ def format_pose(T: np.ndarray) -> str:
 @dataclass
 class _Episode:
     number: int
-    next_phase: int = INIT
-    marked: list[Keypose] = field(default_factory=list)
+    next_phase: int = INIT  # the keypose to mark next (MANIPULATE + 1: all four are marked)
 
 
 class TeleopSession:
@@ -287,7 +286,6 @@ class TeleopSession:
     def marked(self, keypose: Keypose, executed: bool) -> None:
         """The outcome of a :class:`Mark`: an executed keypose counts, a failed one may be marked again."""
         if executed and self._episode is not None and keypose.phase == self._episode.next_phase:
-            self._episode.marked.append(keypose)
             self._episode.next_phase += 1
 
     def _start(self) -> Effect:

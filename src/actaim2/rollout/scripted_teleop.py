@@ -5,9 +5,10 @@ A human teleoperator (``teleop_node``) chooses a mode ("pull" a drawer open, "pu
 the four keyposes INIT, REACH, GRASP, MANIPULATE, each executed through ``/execute_keypose``.
 This module stands in for that person in simulation: the :class:`ScriptedExpert` plans the
 keyposes from the object's true state (link poses, joint axes, handle annotations), with the
-grasp point moved to a random place along the handle (a person does not always grasp a drawer
-edge in its middle), and the person's judgement of success is the object's DoF: it moved the
-asked way by more than 30 % of its range.
+handle annotation moved where this operator takes it (:func:`operator_handle`): a random point
+along the handle (a person does not always grasp a drawer edge in its middle), the approach
+pitched down, a push made lower on the panel. The person's judgement of success is the
+object's DoF: it moved the asked way by more than 30 % of its range.
 
 Everything here is ROS-free. ``scripted_teleop`` (actaim2_control) runs it against a live
 simulator through the node graph, on a mirror :class:`SimEnv` loaded with the same scene;
