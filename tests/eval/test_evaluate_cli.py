@@ -103,3 +103,25 @@ def test_other_checkpoint_refused(checkpoints, tmp_path) -> None:
     result = subprocess.run(evaluate("--smoke", "--out", out, "--checkpoint", checkpoints["cgmvae"], "--methods", "actaim2"),
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 2 and "actaim2 results made with " + "0" * 64 in result.stderr
+
+
+@pytest.mark.timeout(900)
+def test_grounding_experiment(checkpoints, tmp_path) -> None:
+    """--grounding: bandit (ActAIM2) and CEM (CVAE, VQ-VAE) runs for both targets, the plot, resumable by run."""
+    out = tmp_path / "grounding"
+    command = evaluate("--out", out, "--checkpoint", checkpoints["cgmvae"], "--cvae", checkpoints["cvae"], "--vqvae",
+                       checkpoints["vqvae"], "--grounding", "table:0", "--grounding-iterations", 2, "--grounding-seeds", 1,
+                       "--workers", 0)
+    result = subprocess.run(command, capture_output=True, text=True, timeout=800)
+    assert result.returncode == 0, result.stdout + result.stderr
+    runs = [json.loads(line) for line in (out / "grounding" / "results.jsonl").read_text().splitlines()]
+    assert sorted((r["method"], r["target"]) for r in runs) == sorted(
+        (m, t) for m in ("actaim2", "actaim_cvae", "vqvae_rvt") for t in (1, -1))
+    for r in runs:
+        assert len(r["rewards"]) == 2 and set(r["rewards"]) <= {0, 1} and r["dof"]
+        if r["method"] == "actaim2":
+            assert all(0 <= c < CLUSTERS for c in r["choices"])  # the bandit's arms are the clusters
+    assert (out / "figures" / "grounding.png").stat().st_size > 1000
+    assert "| actaim2 | Thompson bandit over clusters | open | 1 |" in (out / "grounding.md").read_text()
+    again = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0 and "6 already done" in again.stdout

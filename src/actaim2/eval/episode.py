@@ -59,6 +59,6 @@ def run_sample(env: SimEnv, planner: KeyposePlanner, executor, cloud_config: Clo
         record.update(group=exc.group, repetition=exc.repetition)
     outcome = measure(list(info.dof_names), info.dof_initial, env.object_dof(), info.dof_lower, info.dof_upper)
     record.update(success=outcome.success, largest_change=round(outcome.largest_change, 5),
-                  mode=list(outcome.mode) if outcome.mode else None, fractions=outcome.fractions,
+                  mode=list(outcome.mode) if outcome.mode else None, fractions=outcome.fractions, initial=outcome.initial,
                   phases_executed=executed, note=note, seconds=round(time.perf_counter() - started, 3))
     return record

@@ -48,6 +48,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--allow-raycast", action="store_true", help="without a Vulkan device, render by ray casting instead of refusing")
     parser.add_argument("--figures", type=int, default=2, metavar="N",
                         help="embedding (PCA) and heatmap figures of ActAIM2 on the first N objects (0 = none)")
+    parser.add_argument("--grounding", metavar="CATEGORY:INSTANCE",
+                        help="run the interaction-mode grounding experiment on this object instead of the tables "
+                             "(ActAIM2: bandit over clusters; --cvae / --vqvae: CEM over their embedding)")
+    parser.add_argument("--grounding-iterations", type=int, default=50, help="samples per grounding run")
+    parser.add_argument("--grounding-seeds", type=int, default=5, help="grounding runs per method and target")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -152,6 +157,10 @@ def main(args: argparse.Namespace) -> int:
     except (ValueError, FileNotFoundError, RunMismatchError) as exc:
         print(f"actaim2 evaluate: {exc}", file=sys.stderr)
         return 2
+    setup = WorkerSetup(args.robot, perception.rig, render_path, tuple(perception.center), float(perception.half_extent),
+                        {m: str(stems[m]) for m in described}, str(encoder) if encoder else None, gmm)
+    if args.grounding:
+        return _grounding(args, setup, methods)
     clusters = {m: described[m]["clusters"] if m in described and m != "goal_rvt" else 0 for m in methods}
     skip = {"data_collection": {o.key for o in objects if o.key not in (gmm or {})}}
     if gmm is not None and skip["data_collection"]:
@@ -162,8 +171,6 @@ def main(args: argparse.Namespace) -> int:
     todo = [t for t in tasks if t.key not in log.done]
     print(f"{len(tasks)} samples ({preset.name}: {len(objects)} objects, rows {', '.join(methods)}); "
           f"{len(tasks) - len(todo)} already done; render path {render_path}")
-    setup = WorkerSetup(args.robot, perception.rig, render_path, tuple(perception.center), float(perception.half_extent),
-                        {m: str(stems[m]) for m in described}, str(encoder) if encoder else None, gmm)
     started, errors = time.perf_counter(), 0
     bar = tqdm(total=len(todo), unit="sample", disable=args.no_progress)
     try:
@@ -187,6 +194,57 @@ def main(args: argparse.Namespace) -> int:
         text += "\n## Figures\n\n" + "\n".join(f"![{p.stem}](figures/{p.name})" for p in paths) + "\n"
     (args.out / "tables.md").write_text(text)
     print(f"{len(todo) - errors} samples run in {seconds:.0f} s ({errors} errors, retried by a rerun); tables: {args.out / 'tables.md'}")
+    return 0 if errors == 0 else 1
+
+
+def _grounding(args: argparse.Namespace, setup, methods: list[str]) -> int:
+    """The grounding experiment: runs of (method, target, seed), resumable by run, then the reward plot."""
+    import numpy as np
+    from tqdm import tqdm
+
+    from actaim2.eval.evalset import catalogue_objects
+    from actaim2.eval.grounding import GROUNDING_METHODS, GroundingRun, reward_plot
+    from actaim2.eval.results import ResultLog
+    from actaim2.eval.worker import EvalWorker
+    from actaim2.parallel import run_unordered
+    from actaim2.sim.objects.catalog import SPLITS
+
+    category, _, instance = args.grounding.partition(":")
+    split = next((name for name, members in SPLITS.items() if instance.isdigit() and int(instance) in members.get(category, ())), None)
+    chosen = [m for m in GROUNDING_METHODS if m in methods]
+    if split is None or not chosen:
+        print(f"actaim2 evaluate: --grounding needs a catalogue CATEGORY:INSTANCE (got {args.grounding!r}) and a checkpoint "
+              f"among --checkpoint, --cvae, --vqvae", file=sys.stderr)
+        return 2
+    obj = next(o for o in catalogue_objects((split,), 0, (category,)) if o.instance == int(instance))
+    runs = [GroundingRun(m, obj, target, seed, args.grounding_iterations) for m in chosen for target in (1, -1)
+            for seed in range(args.grounding_seeds)]
+    log = ResultLog(args.out / "grounding")
+    todo = [r for r in runs if r.key not in log.done]
+    print(f"grounding on {obj.key}: {len(runs)} runs of {args.grounding_iterations} samples, {len(runs) - len(todo)} already done")
+    errors = 0
+    for record in tqdm(run_unordered(EvalWorker, setup, todo, args.workers, args.ray), total=len(todo), unit="run",
+                       disable=args.no_progress):
+        if "error" in record:
+            errors += 1
+            print(f"{record['key']}: {record['error']}", file=sys.stderr)
+        else:
+            log.append(record)
+    results = [log.records[r.key] for r in runs if r.key in log.records]
+    if results:
+        (args.out / "figures").mkdir(parents=True, exist_ok=True)
+        reward_plot(results, args.out / "figures" / "grounding.png")
+        lines = [f"# Interaction-mode grounding on {obj.key}", "", f"Command: `actaim2 evaluate {' '.join(sys.argv[2:])}`", "",
+                 "| method | search | target | runs | mean reward, last 10 iterations |", "|---|---|---|---|---|"]
+        for m in chosen:
+            for target in (1, -1):
+                rewards = [r["rewards"][-10:] for r in results if r["method"] == m and r["target"] == target]
+                if rewards:
+                    lines.append(f"| {m} | {'Thompson bandit over clusters' if m == 'actaim2' else 'CEM over the embedding'} | "
+                                 f"{'open' if target > 0 else 'close'} | {len(rewards)} | {np.mean(rewards):.2f} |")
+        lines += ["", "![grounding](figures/grounding.png)"]
+        (args.out / "grounding.md").write_text("\n".join(lines) + "\n")
+    print(f"grounding: {len(results)} runs in the results, {errors} errors; {args.out / 'grounding.md'}")
     return 0 if errors == 0 else 1
 
 

@@ -21,6 +21,7 @@ class Outcome:
     dof: str  # the DoF that moved most ("" when nothing moved)
     direction: int  # +1 opening, -1 closing, 0 when nothing moved
     fractions: dict[str, float]  # signed change of every DoF, fraction of its range
+    initial: dict[str, float]  # where every DoF started, as a fraction of its range from the lower limit
 
     @property
     def mode(self) -> tuple[str, int] | None:
@@ -32,8 +33,9 @@ def measure(names: list[str], initial: np.ndarray, final: np.ndarray, lower: np.
     """The outcome of moving the object's DoFs from ``initial`` to ``final``."""
     fractions = moved_fraction(initial, final, lower, upper)
     if len(fractions) == 0:
-        return Outcome(False, 0.0, "", 0, {})
+        return Outcome(False, 0.0, "", 0, {}, {})
+    start = moved_fraction(lower, initial, lower, upper)
     k = int(np.argmax(np.abs(fractions)))
     largest = float(abs(fractions[k]))
     return Outcome(largest > SUCCESS_FRACTION, largest, names[k] if largest > 0 else "", int(np.sign(fractions[k])),
-                   {n: round(float(f), 5) for n, f in zip(names, fractions)})
+                   {n: round(float(f), 5) for n, f in zip(names, fractions)}, {n: round(float(f), 5) for n, f in zip(names, start)})

@@ -74,7 +74,7 @@ def pseudo_group(slot: int) -> tuple[int, int]:
     return slot % PSEUDO_CLUSTERS, slot // PSEUDO_CLUSTERS
 
 
-class _Served:
+class ServedPolicy:
     """A policy checkpoint and the view makers of its two models (one when their views agree)."""
 
     def __init__(self, model: PolicyModel, spec: RobotSpec):
@@ -101,7 +101,7 @@ class _Served:
         return next_keypose
 
 
-class PolicySource(_Served):
+class PolicySource(ServedPolicy):
     def begin(self, scene: Scene) -> Plan:
         task = scene.task
         views = self.views("selector", scene.init_pictures, scene.env)
@@ -141,7 +141,7 @@ def goal_pictures(env: SimEnv, info: ResetInfo, dof: str, direction: int) -> Obs
         env.object.set_qpos(state)
 
 
-class GoalSource(_Served):
+class GoalSource(ServedPolicy):
     """Goal-RVT: goal g = slot mod (number of feasible goals), so the goals are visited in turn."""
 
     def __init__(self, model: PolicyModel, spec: RobotSpec, encoder):

@@ -78,10 +78,14 @@ class EvalWorker:
         return PolicySource(model, spec)
 
     def run(self, task) -> dict:
-        """The task's result record; {key, error} when something broke (a rerun retries it)."""
+        """The task's result record (an EvalTask's sample, or a GroundingRun's rewards); {key, error} when
+        something broke (a rerun retries it)."""
         from actaim2.eval.episode import run_sample
+        from actaim2.eval.grounding import GroundingRun, run_grounding
 
         try:
+            if isinstance(task, GroundingRun):
+                return run_grounding(self, task)
             return run_sample(self.env, self.planner, self.executor, self.cloud_config, self.source(task.method), task,
                               self.setup.dof_fraction, self.setup.velocity_scaling)
         except Exception as exc:  # one broken sample (a simulator error) must not end a 3-hour evaluation
