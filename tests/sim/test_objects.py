@@ -92,6 +92,26 @@ def test_every_category_has_four_structures_and_every_handle_kind_is_built():
     assert set(HANDLE_KINDS) <= kinds, set(HANDLE_KINDS) - kinds
 
 
+@pytest.mark.parametrize("hinge", ["left", "right"])
+def test_a_recessed_lip_is_a_pocket_cut_into_a_whole_panel(hinge):
+    """The panel's boxes tile it without overlap except for the pocket, on either hinge side."""
+    from actaim2.sim.objects.parts import POCKET_WIDTH, Builder, Palette, add_hinged_panel
+
+    rng = np.random.default_rng(0)
+    b = Builder("test_door", "door")
+    W, H, t = 0.4, 0.8, 0.035
+    link = add_hinged_panel(b, "door", "base", (-W / 2, W / 2, 0.0, H), 0.0, t, hinge, 1.4, "recessed", H / 2, rng,
+                            Palette.sample(rng))
+    handle = b.handles[0]
+    lo = np.min([np.subtract(s.xyz, np.divide(s.size, 2)) for s in link.shapes], axis=0)
+    hi = np.max([np.add(s.xyz, np.divide(s.size, 2)) for s in link.shapes], axis=0)
+    np.testing.assert_allclose(hi - lo, [t, W, H], atol=1e-9)
+    pocket = POCKET_WIDTH * handle.span * min(0.03, t - 0.008)
+    assert sum(np.prod(s.size) for s in link.shapes) == pytest.approx(t * W * H - pocket, rel=1e-9)
+    lip_side = 1.0 if hinge == "right" else -1.0  # the free edge: +y of a right-hinged panel's link frame
+    assert handle.position[1] * lip_side > W - 0.02 and handle.position[0] > -t  # on the lip, inside the panel
+
+
 def test_no_two_instances_are_near_duplicates_and_the_rule_catches_one():
     for category in catalog.list_categories():
         models = [catalog.generate(category, i) for i in catalog.category_instances(category)]

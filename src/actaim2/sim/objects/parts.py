@@ -289,8 +289,8 @@ def add_hinged_panel(b: Builder, name: str, parent: str, panel: tuple[float, flo
             raise ValueError(f"a recessed lip needs a panel >= 35 mm thick, got {t * 1000:.0f} mm")
         pocket_h, pocket_d = rng.uniform(0.12, 0.16), min(0.03, t - 0.008)
         lip_in, pocket_in = free + side * LIP_WIDTH, free + side * (LIP_WIDTH + POCKET_WIDTH)
-        hinge_y = 0.0 if hinge == "left" else W
-        main, lip, pocket = (sorted((p0, p1)) for p0, p1 in ((pocket_in, hinge_y), (free, lip_in), (lip_in, pocket_in)))
+        # the hinge line is the link's y = 0 on either side
+        main, lip, pocket = (sorted((p0, p1)) for p0, p1 in ((pocket_in, 0.0), (free, lip_in), (lip_in, pocket_in)))
         zp0, zp1 = zh - pocket_h / 2, zh + pocket_h / 2
         link.shapes += [
             box((-t, main[0], -h), (0.0, main[1], h), pal.panel),
