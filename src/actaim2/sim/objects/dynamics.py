@@ -67,10 +67,21 @@ class ObjectDynamics:
                 joint.set_drive_velocity_target(0.0)
                 self._bistable.append(driven)
             else:
-                joint.set_drive_property(0.0, max(d.friction, MIN_FRICTION) / V_CREEP, force_limit=max(d.friction, MIN_FRICTION))
                 joint.set_drive_velocity_target(0.0)
                 if d.damping > 0.0:
                     self._viscous.append(driven)
+                else:
+                    joint.set_drive_property(0.0, max(d.friction, MIN_FRICTION) / V_CREEP, force_limit=max(d.friction, MIN_FRICTION))
+        self.at_rest()
+
+    def at_rest(self) -> None:
+        """The drives of parts standing still: called when the object is teleported to rest, so
+        that an episode starts from the same drive state whatever the episodes before it did
+        (the clamps are otherwise only refreshed when they change by LIMIT_TOLERANCE)."""
+        for v in self._viscous:
+            d = v.dynamics
+            v.limit = max(d.friction, MIN_FRICTION)
+            v.joint.set_drive_property(0.0, v.limit / V_CREEP, force_limit=v.limit)
         self.step()
 
     def step(self) -> None:

@@ -80,6 +80,8 @@ class LoadedObject:
         q = np.clip(np.asarray(q, dtype=float), self.lower, self.upper)
         self.articulation.set_qpos(q)
         self.articulation.set_qvel(np.zeros_like(q))
+        if self.dynamics is not None:
+            self.dynamics.at_rest()
 
     def pose(self) -> np.ndarray:
         """4x4 pose of the object's root link in ``world``."""
