@@ -16,6 +16,7 @@ Results arrive in completion order: callers key them by task (e.g. append to a J
 """
 from __future__ import annotations
 
+import importlib
 import multiprocessing as mp
 import os
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -71,7 +72,7 @@ def _processes(make, setup, tasks: Iterable[Any], workers: int) -> Iterator[Any]
 def ray_available() -> str | None:
     """None when Ray can be imported, else why not."""
     try:
-        import ray  # noqa: F401
+        importlib.import_module("ray")
     except ImportError as exc:
         return f"Ray is not installed ({exc}): pip install -e src/actaim2[ray]"
     return None

@@ -29,7 +29,7 @@ from actaim2.sim.env import SimEnv
 def run_sample(env: SimEnv, planner: KeyposePlanner, executor, cloud_config: CloudConfig, source, task: EvalTask,
                dof_fraction: float, velocity_scaling: float) -> dict:
     """Execute one sample of ``source`` for ``task``; the result record (JSON types)."""
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.process_time()
     obj = task.obj
     info = env.reset(obj.category if not obj.folder else None, max(obj.instance, 0), seed=task.reset_seed,
                      dof_fraction=dof_fraction, folder=obj.folder or None)
@@ -60,5 +60,6 @@ def run_sample(env: SimEnv, planner: KeyposePlanner, executor, cloud_config: Clo
     outcome = measure(list(info.dof_names), info.dof_initial, env.object_dof(), info.dof_lower, info.dof_upper)
     record.update(success=outcome.success, largest_change=round(outcome.largest_change, 5),
                   mode=list(outcome.mode) if outcome.mode else None, fractions=outcome.fractions, initial=outcome.initial,
-                  phases_executed=executed, note=note, seconds=round(time.perf_counter() - started, 3))
+                  phases_executed=executed, note=note, seconds=round(time.perf_counter() - started, 3),
+                  cpu_seconds=round(time.process_time() - cpu, 3))  # all threads of the worker (renderer too): the idle-machine cost
     return record
