@@ -2,7 +2,7 @@
 # Records the golden bags of bags/ and their golden outputs, in one command:
 #   bash scripts/record_golden_bags.sh
 # Re-run it whenever the simulator, the robot models or the perception configuration change
-# what the bags show; then commit bags/sim_azure_kinect_* and tests/bags/golden/*.npz.
+# what the bags show; then commit bags/sim_azure_kinect_* and tests/bags/golden/ (the .npz and policy_azure_kinect.*).
 #
 # The cell: sim_node (Kinova j2s6s200, the azure_kinect rig with its sensor realism, SAPIEN
 # rendering, one cloud per sim second) + control_node + scripted_teleop (the scripted
@@ -57,4 +57,6 @@ rm -rf bags/sim_azure_kinect_pull bags/sim_azure_kinect_push
 mv "$TMP/episode_0000" bags/sim_azure_kinect_pull
 mv "$TMP/episode_0001" bags/sim_azure_kinect_push
 python tests/bags/golden.py write bags/sim_azure_kinect_pull bags/sim_azure_kinect_push
+python scripts/make_golden_checkpoint.py  # the policy_node half: a test checkpoint trained on the new bags
+python tests/bags/golden_policy.py write
 du -sh bags/sim_azure_kinect_* tests/bags/golden
