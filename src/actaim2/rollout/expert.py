@@ -57,7 +57,8 @@ FREE_MOVE_CLEARANCE = 0.1  # m: the joint-space move ends this much farther back
 # (joint 6 limit) nor straight down far away, so handles there are taken at an angle; flat
 # grips (lips, toggles, sliders) turn less, or only about the closing axis.
 _ROUND = [(a, 0) for a in (0, 25, 45, -25, -45)] + [(0, 25), (0, -25)]
-TILTS = {"bar": _ROUND, "knob": _ROUND, "u_handle": _ROUND,
+TILTS = {"bar": _ROUND, "u_handle": _ROUND,
+         "knob": _ROUND + [(0, 45), (0, -45)],  # a round cap: the pinch across it survives a steep tilt
          "lever": _ROUND + [(0, 40), (0, -40)],
          # a lip between a pocket and a free edge, a panel edge pinched across its thickness:
          # the fingers may turn along the lip or edge (about the closing axis), hardly across it

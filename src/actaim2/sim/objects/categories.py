@@ -467,7 +467,9 @@ def safe(rng: np.random.Generator, object_id: str, layout: str) -> ObjectModel:
     pal = Palette.sample(rng)
     b = Builder(object_id, "safe", {"front_distance": 0.6, "layout": layout})
     s = b.dim("width", rng, 0.42, 0.5) if layout == "double_door" else b.dim("width", rng, 0.3, 0.42)
-    d, stand = b.dim("depth", rng, 0.3, 0.38), b.dim("stand", rng, 0.12, 0.22)
+    # a deposit box is shallow and stands low: its lid swings up over its back edge, its handle must stay in reach
+    d = b.dim("depth", rng, 0.24, 0.3) if layout == "top_lid" else b.dim("depth", rng, 0.3, 0.38)
+    stand = b.dim("stand", rng, 0.02, 0.08) if layout == "top_lid" else b.dim("stand", rng, 0.12, 0.22)
     h = s * b.dim("aspect", rng, 0.9, 1.2) if layout != "top_lid" else b.dim("lid_height", rng, 0.25, 0.32)
     b.base.shapes.append(box((-d / 2 + 0.02, -s / 2 + 0.02, 0.0), (d / 2 - 0.02, s / 2 - 0.02, stand), pal.accent))
     td = rng.uniform(0.04, 0.055)
@@ -482,7 +484,7 @@ def safe(rng: np.random.Generator, object_id: str, layout: str) -> ObjectModel:
         kind = _pick(rng, ["u_handle", "bar"])  # on the lid's front face: lifted by a horizontal pull
         g = add_handle(lid, kind, (-d - 0.004, 0.0, t / 2), (-1, 0, 0), (0, 1, 0), rng, pal.handle, length=rng.uniform(0.1, 0.14))
         b.add_handle(lid, kind, g)
-        b.params["front_distance"] = 0.45  # the lid swings up and back: closer, so the raised handle stays in reach
+        b.params["front_distance"] = 0.4  # the lid swings up and back: closer, so the raised handle stays in reach
         return b.build()
     b.base.shapes.append(box((-d / 2, -s / 2, stand), (d / 2, s / 2, stand + h), pal.body))
     if layout == "double_door":

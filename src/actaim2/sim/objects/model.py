@@ -32,7 +32,7 @@ Vec3 = tuple[float, float, float]
 RGBA = tuple[float, float, float, float]
 
 # Version of the generator's output: bump it to invalidate cached object folders.
-FORMAT_VERSION = 14
+FORMAT_VERSION = 16
 
 
 @dataclass(frozen=True)
