@@ -33,10 +33,10 @@ from typing import Callable
 
 import numpy as np
 import rclpy
+from actaim2_control.action_client import LockedActionClient
 from actaim2_msgs.action import ExecuteKeypose
 from actaim2_msgs.msg import EpisodeEvent, Keypose
 from actaim2_msgs.srv import PredictKeypose, ResetScene, SampleMode
-from rclpy.action import ActionClient
 from rclpy.duration import Duration
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
@@ -132,7 +132,7 @@ class EpisodeRunner(Node):
         self._reset_client = self.create_client(ResetScene, "/reset_scene")
         self._sample_client = self.create_client(SampleMode, "/sample_mode")
         self._predict_client = self.create_client(PredictKeypose, "/predict_keypose")
-        self._execute_client = ActionClient(self, ExecuteKeypose, "/execute_keypose")
+        self._execute_client = LockedActionClient(self, ExecuteKeypose, "/execute_keypose")  # rclpy#1123: no lost goal answers
         self._episode_pub = self.create_publisher(EpisodeEvent, "/episode", EPISODE_QOS)
         self._lock = threading.Lock()
         self._object_state: JointState | None = None
