@@ -12,8 +12,9 @@ import sys
 import time
 
 import numpy as np
+import pytest
 
-from actaim2.data.collect import CollectConfig, TrajectoryCollector, collect, stage_tasks
+from actaim2.data.collect import SKIPPED_FILE, CollectConfig, TrajectoryCollector, collect, stage_tasks
 from actaim2.data.storage import MAX_TRAJECTORY_BYTES, DatasetReader, decode_trajectory
 from actaim2.data.torch_dataset import KeyframeDataset, ModeDataset
 from actaim2.data.trajectory import OBSERVATION_NAMES
@@ -74,29 +75,43 @@ def test_a_task_run_again_gives_the_same_trajectory(tmp_path):
     np.testing.assert_array_equal(a.observations["final"]["cam0"].rgb, b.observations["final"]["cam0"].rgb)
 
 
-def test_collection_resumes_after_a_hard_kill(tmp_path):
-    out = tmp_path / "ds"
-    cmd = [sys.executable, "-m", "actaim2.cli", "collect", "--out", str(out), "--object", f"{OBJECT[0]}:{OBJECT[1]}",
-           "--random", "3", "--grasp", "0", "--gmm", "0", "--workers", "1", "--no-progress"]
-    proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    index = out / "index.jsonl"
-    deadline = time.monotonic() + 120
+def _run_until_stored(cmd: list[str], index, stored: int, sig: int) -> subprocess.Popen:
+    """Start the CLI in its own process group; once ``stored`` trajectories are indexed, send ``sig``
+    to the group (SIGINT: what Ctrl-C in a terminal does; SIGKILL: a power cut)."""
+    proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 180
     try:
         while time.monotonic() < deadline and proc.poll() is None:
-            if index.exists() and index.read_text().count("\n") >= 1:
+            if index.exists() and index.read_text().count("\n") >= stored:
                 break
             time.sleep(0.2)
-        assert index.exists() and index.read_text().count("\n") >= 1, "the first trajectory was never stored"
+        assert index.exists() and index.read_text().count("\n") >= stored, f"trajectory {stored} was never stored"
     finally:
         if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)  # the collector and its worker, mid-trajectory
-        proc.wait(timeout=30)
+            os.killpg(proc.pid, sig)
+        proc.wait(timeout=60)
+    return proc
+
+
+def test_collection_resumes_after_a_hard_kill_and_after_ctrl_c(tmp_path):
+    out = tmp_path / "ds"
+    cmd = [sys.executable, "-m", "actaim2.cli", "collect", "--out", str(out), "--object", f"{OBJECT[0]}:{OBJECT[1]}",
+           "--random", "4", "--grasp", "0", "--gmm", "0", "--workers", "1", "--no-progress"]
+    index = out / "index.jsonl"
+    _run_until_stored(cmd, index, 1, signal.SIGKILL)  # the collector and its worker, mid-trajectory
+    killed = DatasetReader(out).entries
+    assert 1 <= len(killed) < 4
+    interrupted = _run_until_stored(cmd, index, len(killed) + 1, signal.SIGINT)
+    assert interrupted.returncode == 130 and "run the same command to resume" in interrupted.stderr.read()
     before = DatasetReader(out).entries
-    assert 1 <= len(before) < 3
-    config = CollectConfig(out=out, objects=(OBJECT,), per_object={"random": 3}, workers=0, encoder_steps=10, show_progress=False)
+    assert [e["id"] for e in before[: len(killed)]] == [e["id"] for e in killed]
+    with pytest.raises(ValueError, match="seed 0"):  # another seed would be other trajectories under the same ids
+        collect(CollectConfig(out=out, objects=(OBJECT,), per_object={"random": 4}, seed=1, workers=0, show_progress=False))
+    config = CollectConfig(out=out, objects=(OBJECT,), per_object={"random": 4}, workers=0, encoder_steps=10, show_progress=False)
     report = collect(config)
     assert report["stages"][0]["already_done"] == len(before)
     after = DatasetReader(out)
     ids = [e["id"] for e in after.entries]
-    assert len(ids) == len(set(ids)) == 3 - report["stages"][0]["skipped"]
+    skipped = (out / SKIPPED_FILE).read_text().count("\n") if (out / SKIPPED_FILE).exists() else 0  # over all three runs
+    assert len(ids) == len(set(ids)) == 4 - skipped
     assert all(after.read(e).id == e["id"] for e in after.entries)

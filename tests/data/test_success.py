@@ -1,10 +1,75 @@
-"""The visual success label's threshold, metrics, and the ground-truth criterion."""
+"""The visual success label's model, threshold, metrics and calibration rules, and the ground-truth criterion."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
-from actaim2.data.success import calibrate_threshold, change, label_metrics, relative_score
+from actaim2.data.labelling import calibrate, success_scores, visual_labels
+from actaim2.data.part_motion import PartMotion
+from actaim2.data.success import SuccessModel, calibrate_threshold, change, label_metrics, motion_features
 from actaim2.data.trajectory import ObjectState, ground_truth_success
+
+
+def rotation(angle_deg: float, radius: float) -> PartMotion:
+    return PartMotion(points=500, angle=float(np.radians(angle_deg)), shift=radius * np.radians(angle_deg) / 2,
+                      displacement=2 * radius * np.sin(np.radians(angle_deg) / 2), radius=radius, extent=radius,
+                      residual=0.0015, axis=(0.0, 0.0, 1.0))
+
+
+def translation(shift: float, extent: float) -> PartMotion:
+    return PartMotion(points=500, angle=0.0, shift=shift, displacement=shift, radius=0.0, extent=extent,
+                      residual=0.0015, axis=(1.0, 0.0, 0.0))
+
+
+def _synthetic_parts(rng: np.random.Generator, n: int) -> tuple[list[PartMotion], np.ndarray]:
+    """Doors (0.4 m, ranges 70-95 deg), toggles-sized levers (3 cm, 40-60 deg) and drawers (0.2-0.3 m
+    travel) moved by a uniform share of their range from half-open; ground truth: > 30%."""
+    parts, gt = [], []
+    for k in range(n):
+        moved = rng.uniform(0.0, 0.5)
+        kind = k % 3
+        if kind == 0:
+            parts.append(rotation(moved * rng.uniform(70, 95), 0.4 + rng.uniform(-0.05, 0.05)))
+        elif kind == 1:
+            parts.append(rotation(moved * rng.uniform(40, 60), 0.03 + rng.uniform(-0.005, 0.005)))
+        else:
+            parts.append(translation(moved * rng.uniform(0.2, 0.3), 0.5 + rng.uniform(-0.1, 0.1)))
+        gt.append(moved > 0.3)
+    return parts, np.array(gt)
+
+
+def test_the_model_puts_the_30_percent_mark_by_kind_of_part():
+    parts, gt = _synthetic_parts(np.random.default_rng(0), 600)
+    model = calibrate([[p] for p in parts], gt)
+    test_parts, test_gt = _synthetic_parts(np.random.default_rng(1), 600)
+    labels = success_scores([[p] for p in test_parts], model) > model.threshold
+    assert abs(model.threshold - 0.5) < 0.15  # the accuracy-optimal cut stays near the likelihood's
+    assert label_metrics(labels, test_gt)["accuracy"] > 0.93
+    # the same 20 degrees: a failure for a door (~23% of its range), a success for a toggle (~40%)
+    def p(part: PartMotion) -> float:
+        return model.probability(motion_features([part]))
+
+    assert p(rotation(20.0, 0.4)) < model.threshold < p(rotation(20.0, 0.03))
+    assert p(rotation(35.0, 0.4)) > model.threshold
+    assert p(translation(0.03, 0.5)) < model.threshold < p(translation(0.12, 0.5))
+    assert SuccessModel.from_json(model.to_json()) == model
+    assert success_scores([[]], model)[0] == 0.0  # nothing moved: no success
+
+
+def test_calibration_needs_both_outcomes_and_skips_ambiguous_successes():
+    parts, gt = _synthetic_parts(np.random.default_rng(2), 60)
+    assert calibrate([[p] for p in parts[:3]], gt[:3]) is None  # too few to calibrate
+    with pytest.raises(ValueError, match="both outcomes"):
+        SuccessModel.fit(np.stack([motion_features([p]) for p in parts]), np.zeros(len(parts), bool))
+    # a success with two moved parts does not say which one moved far: it must not pull the door's mark down
+    door_nudge, drawer_pull = rotation(10.0, 0.4), translation(0.14, 0.5)
+    with_ambiguous = calibrate([[p] for p in parts] + [[door_nudge, drawer_pull]] * 30, np.r_[gt, np.ones(30, bool)])
+    assert with_ambiguous.weights == calibrate([[p] for p in parts], gt).weights
+    entries = [{"id": f"t{k}", "split": "train_seen", "gt_success": bool(g)} for k, g in enumerate(gt)]
+    scores, model, calibrated = visual_labels(entries, {f"t{k}": [p] for k, p in enumerate(parts)})
+    assert calibrated and label_metrics(scores > model.threshold, gt)["accuracy"] > 0.9
+    with pytest.raises(ValueError, match="calibration split"):
+        visual_labels(entries, {f"t{k}": [p] for k, p in enumerate(parts)}, calibration_split="train_unseen_instance")
 
 
 def test_threshold_separates_and_matches_brute_force():
@@ -12,18 +77,15 @@ def test_threshold_separates_and_matches_brute_force():
     s = np.r_[rng.normal(0.0, 1.0, 300), rng.normal(3.0, 1.0, 60)]
     gt = np.r_[np.zeros(300, bool), np.ones(60, bool)]
     t = calibrate_threshold(s, gt)
-    best = max(label_metrics(s, gt, c)["accuracy"] for c in np.r_[s - 1e-9, s + 1e-9])
-    assert label_metrics(s, gt, t)["accuracy"] == best
-    assert label_metrics(np.array([0.1, 0.2, 0.9]), np.array([False, False, True]), calibrate_threshold([0.1, 0.2, 0.9], [False, False, True]))["accuracy"] == 1.0
+    best = max(label_metrics(s > c, gt)["accuracy"] for c in np.r_[s - 1e-9, s + 1e-9])
+    assert label_metrics(s > t, gt)["accuracy"] == best
+    m = label_metrics(np.array([True, True, False, False]), np.array([True, False, True, False]))
+    assert (m["accuracy"], m["balanced_accuracy"], m["precision"], m["recall"]) == (0.5, 0.5, 0.5, 0.5)
+    assert m["false_positives"] == m["false_negatives"] == 1
 
 
-def test_change_is_rms_of_z_and_the_score_is_relative_to_the_object():
-    z = np.array([[3.0, 4.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]])
-    np.testing.assert_allclose(change(z), [2.5, 0.0])
-    changes = np.array([0.01, 0.02, 0.10, 1.0, 2.0, 10.0])  # a switch's toggle and a door: different scales
-    objects = np.array(["switch"] * 3 + ["door"] * 3)
-    rel = relative_score(changes, objects, percentile=100.0)
-    np.testing.assert_allclose(rel, [0.1, 0.2, 1.0, 0.1, 0.2, 1.0])
+def test_change_is_rms_of_z():
+    np.testing.assert_allclose(change(np.array([[3.0, 4.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0]])), [2.5, 0.0])
 
 
 def test_ground_truth_is_thirty_percent_of_the_range():

@@ -4,8 +4,9 @@ Stages, each resumable (a stored or skipped trajectory id is never run again):
   1. explore   random and heuristic-grasp trajectories on every object
   2. encoder   the default encoder E is trained on the training split's observations (unless a
                file is given, e.g. a VGG-19 encoder)
-  3. label     z = E(O_init) - E(O_final) for every trajectory, threshold calibrated on the
-               training split, visual labels written (labelling.py)
+  3. label     the moved parts' motion from O_init and O_final (part_motion.py), z = E(O_init) -
+               E(O_final), the success model calibrated on the training split, visual labels
+               written (labelling.py)
   4. adapt     per object, GMMs fitted on z and on the action sequences (gmm_sampler.py) and
                new trajectories drawn equally from every cluster; ``rounds`` > 1 refits between
                rounds with the new trajectories labelled, as Algorithm 1 iterates
@@ -49,7 +50,7 @@ from actaim2.rollout.sim_executor import SimEnvExecutor
 from actaim2.data.actions import ActionSequence, Sampler
 from actaim2.data.gmm_sampler import GMMAdaptiveSampler, GMMConfig
 from actaim2.data.grasp_sampler import HeuristicGraspSampler
-from actaim2.data.labelling import EMBEDDINGS_FILE, ENCODER_FILE, fit_default_encoder, label_dataset, visual_labels
+from actaim2.data.labelling import EMBEDDINGS_FILE, ENCODER_FILE, fit_default_encoder, label_dataset, measure_motions, visual_labels
 from actaim2.data.object_cloud import CloudConfig, object_cloud
 from actaim2.data.random_sampler import RandomSampler, SamplingConfig
 from actaim2.data.real_objects import FolderObject
@@ -77,7 +78,8 @@ log = logging.getLogger(__name__)
 class CollectConfig:
     out: Path
     objects: tuple[tuple[str, int], ...]  # catalogue (category, instance) pairs
-    per_object: dict[str, int]  # sampler -> trajectories per object
+    per_object: dict[str, int]  # sampler -> trajectories per train_seen object
+    other_splits_share: float = 1.0  # objects outside train_seen get ceil(share x per_object) of each sampler
     workers: int = 2  # processes; 0 runs in this process (debugging, tests)
     seed: int = 0
     robot: str = "panda"
@@ -343,13 +345,15 @@ def run_tasks(config: CollectConfig, writer: DatasetWriter, tasks: list[Task], s
 def stage_tasks(config: CollectConfig, sampler: str, indices: range, gmm: dict | None = None) -> list[Task]:
     """The tasks of one sampler on every object: trajectory numbers ``indices``, seeds derived.
 
-    With ``gmm`` (object id -> fitted GMMAdaptiveSampler) objects without a sampler are left out.
+    Objects outside train_seen take the numbers below their share (``other_splits_share``) of
+    the sampler's count. With ``gmm`` (object id -> fitted GMMAdaptiveSampler) objects without
+    a sampler are left out.
     """
     tasks = []
     for oid, category, instance, split, folder in collection_objects(config):
         if gmm is not None and oid not in gmm:
             continue
-        for k in indices:
+        for k in (k for k in indices if k < per_object(config, sampler, split)):
             tasks.append(Task(trajectory_id(oid, sampler, k), category, instance, split, sampler, k,
                               derive_seed(config.seed, oid, SAMPLER_CODES[sampler], k), gmm[oid] if gmm is not None else None,
                               folder))
@@ -363,6 +367,12 @@ def collection_objects(config: CollectConfig) -> list[tuple[str, str, int, str, 
             + [(f.object_id, f.category, -1, f.split, f.folder) for f in config.folders])
 
 
+def per_object(config: CollectConfig, sampler: str, split: str) -> int:
+    """Trajectories of ``sampler`` on one object of ``split``."""
+    n = config.per_object.get(sampler, 0)
+    return n if split == TRAIN else int(np.ceil(config.other_splits_share * n - 1e-9))
+
+
 def _label(config: CollectConfig) -> dict:
     """Train the default encoder once if none was given, then (re)label everything."""
     encoder = config.encoder
@@ -372,7 +382,7 @@ def _label(config: CollectConfig) -> dict:
             reader = DatasetReader(config.out)
             model, _ = fit_default_encoder(reader, config.encoder_trajectories, config.encoder_steps, config.seed, config.show_progress)
             model.save(encoder)
-    return label_dataset(config.out, encoder, TRAIN, config.show_progress)
+    return label_dataset(config.out, encoder, TRAIN, workers=config.workers, show_progress=config.show_progress)
 
 
 def fit_gmm_samplers(config: CollectConfig, round_start: int) -> dict[str, GMMAdaptiveSampler]:
@@ -385,7 +395,7 @@ def fit_gmm_samplers(config: CollectConfig, round_start: int) -> dict[str, GMMAd
     with np.load(config.out / EMBEDDINGS_FILE) as f:
         z = dict(zip(f["ids"].tolist(), f["z"]))
     before = sorted((e for e in reader.entries if e["sampler"] != "gmm" or e["index"] < round_start), key=lambda e: e["id"])
-    scores, _, threshold = visual_labels(before, z, TRAIN)
+    scores, model, _ = visual_labels(before, measure_motions(config.out, workers=config.workers, show_progress=False), TRAIN)
     sampling = SamplingConfig.for_robot(load_robot_spec(config.robot))
     by_object: dict[str, list[int]] = {}
     for k, e in enumerate(before):
@@ -396,8 +406,18 @@ def fit_gmm_samplers(config: CollectConfig, round_start: int) -> dict[str, GMMAd
             continue
         samplers[oid] = GMMAdaptiveSampler(
             np.array([before[k]["action"] for k in rows]), np.stack([z[before[k]["id"]] for k in rows]),
-            scores[rows] > threshold, config.gmm, sampling, seed=derive_seed(config.seed, oid, 0, round_start))
+            scores[rows] > model.threshold, config.gmm, sampling, seed=derive_seed(config.seed, oid, 0, round_start))
     return samplers
+
+
+def check_resumable(info: dict, config: CollectConfig) -> None:
+    """A dataset is resumed (or extended with more objects and trajectories) only with the seed
+    and robot it was collected with: its trajectory ids name (object, sampler, index), and the
+    same id under another seed or robot would be another trajectory."""
+    for key, value in (("seed", config.seed), ("robot", config.robot)):
+        if key in info and info[key] != value:
+            raise ValueError(f"{config.out} was collected with {key} {info[key]!r}, not {value!r}: "
+                             f"resume it with --{key} {info[key]}, or collect into another --out")
 
 
 def collect(config: CollectConfig) -> dict:
@@ -416,10 +436,12 @@ def collect(config: CollectConfig) -> dict:
     config = replace(config, render_path=perception.render_path)  # workers take the resolved path as it is
     if (config.out / "dataset.json").exists():  # resuming: the pictures must be taken as before
         check_compatible(DatasetReader(config.out).perception_capture(), perception, CAPTURE_FIELDS, ("dataset", "this collection"))
+        check_resumable(DatasetReader(config.out).info, config)
     config.out.mkdir(parents=True, exist_ok=True)
     info = {"rig": perception.rig, "perception": capture_part(perception), "robot": config.robot, "seed": config.seed,
             "objects": [list(o) for o in config.objects], "folders": [[f.folder, f.split] for f in config.folders],
-            "per_object": config.per_object, "dof_fraction": config.dof_fraction}
+            "per_object": config.per_object,
+            "other_splits_share": config.other_splits_share, "dof_fraction": config.dof_fraction}
     if config.folders:  # their hulls before any worker loads them (a cached mesh costs a hash)
         prepare_objects([Path(f.folder) for f in config.folders], HullCache(config.hull_cache), max(1, config.workers))
     report: dict = {"stages": []}

@@ -27,6 +27,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--random", type=int, default=50, help="random-sampling trajectories per object")
     parser.add_argument("--grasp", type=int, default=50, help="heuristic-grasp trajectories per object")
     parser.add_argument("--gmm", type=int, default=50, help="GMM-adaptive trajectories per object")
+    parser.add_argument("--other-splits-share", type=float, default=1.0,
+                        help="objects outside train_seen get this share of each count, rounded up (e.g. 0.4: 50 -> 20)")
     parser.add_argument("--rounds", type=int, default=1, help="GMM refits while collecting the adaptive trajectories")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (0 = in this process)")
     parser.add_argument("--seed", type=int, default=0)
@@ -90,8 +92,8 @@ def main(args: argparse.Namespace) -> int:
     if not objects and not folders:
         print("actaim2 collect: no object selected", file=sys.stderr)
         return 2
-    if min(args.random, args.grasp, args.gmm) < 0 or args.workers < 0 or args.rounds < 1:
-        print("actaim2 collect: counts and --workers must be >= 0, --rounds >= 1", file=sys.stderr)
+    if min(args.random, args.grasp, args.gmm) < 0 or args.workers < 0 or args.rounds < 1 or not 0 < args.other_splits_share <= 1:
+        print("actaim2 collect: counts and --workers must be >= 0, --rounds >= 1, --other-splits-share in (0, 1]", file=sys.stderr)
         return 2
     encoder = args.encoder
     if args.vgg19_weights is not None:
@@ -104,7 +106,7 @@ def main(args: argparse.Namespace) -> int:
             return 2
     config = CollectConfig(
         out=args.out, objects=tuple(objects), per_object={"random": args.random, "grasp": args.grasp, "gmm": args.gmm},
-        workers=args.workers, seed=args.seed, robot=args.robot, perception=args.perception, render_path=args.render_path or "",
+        other_splits_share=args.other_splits_share, workers=args.workers, seed=args.seed, robot=args.robot, perception=args.perception, render_path=args.render_path or "",
         allow_raycast=args.allow_raycast, rounds=args.rounds,
         encoder=encoder, encoder_steps=args.encoder_steps, show_progress=not args.no_progress,
         folders=tuple(folders), hull_cache=args.hull_cache,
@@ -114,14 +116,17 @@ def main(args: argparse.Namespace) -> int:
     except (ValueError, FileNotFoundError) as exc:  # no label calibration split, no Vulkan device, another rig's dataset
         print(f"actaim2 collect: {exc}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:  # everything stored so far is complete on disk (storage.py, labelling.py)
+        print(f"\nactaim2 collect: interrupted; run the same command to resume {args.out}", file=sys.stderr)
+        return 130
     for stage in report["stages"]:
         rate = stage["trajectories"] / stage["seconds"] if stage["seconds"] else float("nan")
         print(f"{stage['stage']}: {stage['trajectories']} stored, {stage['skipped']} skipped, {stage['errors']} errors, "
               f"{stage['already_done']} already done, "
               f"{stage['seconds']:.0f} s ({rate:.2f} trajectories/s)")
     if "labelling" in report:
-        held = report["labelling"].get("other_splits")
-        accuracy = f", accuracy on the other splits {100 * held['accuracy']:.1f}%" if held else ""
-        print(f"visual label: threshold {report['labelling']['threshold']:.4g}{accuracy}")
+        for split, m in report["labelling"]["per_split"].items():
+            print(f"visual label on {split}: accuracy {100 * m['accuracy']:.1f}%, balanced {100 * m['balanced_accuracy']:.1f}%, "
+                  f"precision {100 * m['precision']:.1f}%, recall {100 * m['recall']:.1f}% ({m['n']} trajectories)")
     print(f"statistics: actaim2 stats {args.out}")
     return 0

@@ -90,14 +90,27 @@ def throughput_table(root: Path) -> str:
 
 
 def labelling_table(report: dict) -> str:
-    lines = [f"score: {report['score']}; threshold {report['threshold']:.4g} calibrated on split '{report['calibration_split']}'", "",
-             "| score | split | trajectories | successes (gt) | accuracy | balanced accuracy | precision | recall |",
-             "|---|---|---|---|---|---|---|---|"]
-    for name, part in (("relative (used)", report), ("absolute change", report["absolute_change"])):
-        rows = dict(part["per_split"])
-        if part.get("other_splits"):
-            rows["all but calibration"] = part["other_splits"]
-        for split, m in rows.items():
-            cells = " | ".join(_percent(m[k]) for k in ("accuracy", "balanced_accuracy", "precision", "recall"))
-            lines.append(f"| {name} | {split} | {m['n']} | {m['positives']} | {cells} |")
+    """The visual label's accuracy per split and per category, and the measured alternatives."""
+    metrics = ("accuracy", "balanced_accuracy", "precision", "recall")
+    lines = [f"label: {report['method']}; calibrated on split '{report['calibration_split']}'", "",
+             "| split | trajectories | successes (gt) | accuracy | balanced accuracy | precision | recall | false pos. | false neg. |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    rows = dict(report["per_split"])
+    if report.get("other_splits"):
+        rows["all but calibration"] = report["other_splits"]
+    for split, m in rows.items():
+        cells = " | ".join(_percent(m[k]) for k in metrics)
+        lines.append(f"| {split} | {m['n']} | {m['positives']} | {cells} | {m['false_positives']} | {m['false_negatives']} |")
+    lines += ["", "| category | split | trajectories | successes (gt) | accuracy | false pos. | false neg. |", "|---|---|---|---|---|---|---|"]
+    for category, m in report["per_category"].items():
+        lines.append(f"| {category} | {m['split']} | {m['n']} | {m['positives']} | {_percent(m['accuracy'])} | "
+                     f"{m['false_positives']} | {m['false_negatives']} |")
+    lines += ["", "Alternatives (measured on the same trajectories; thresholds calibrated on the same split):", "",
+              "| score | split | accuracy | balanced accuracy | precision | recall |", "|---|---|---|---|---|---|"]
+    for name, alt in [("used: " + report["method"].split(" (")[0] + " + model", report), *report["alternatives"].items()]:
+        parts = dict(alt["per_split"])
+        if alt.get("other_splits"):
+            parts["all but calibration"] = alt["other_splits"]
+        for split, m in parts.items():
+            lines.append(f"| {name} | {split} | " + " | ".join(_percent(m[k]) for k in metrics) + " |")
     return "\n".join(lines)
