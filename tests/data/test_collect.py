@@ -5,6 +5,7 @@ Vulkan device exists) and execute keyposes through the control package's planner
 """
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -14,7 +15,7 @@ import time
 import numpy as np
 import pytest
 
-from actaim2.data.collect import SKIPPED_FILE, CollectConfig, TrajectoryCollector, collect, stage_tasks
+from actaim2.data.collect import SKIPPED_FILE, CollectConfig, TrajectoryCollector, collect, derive_seed, stage_tasks, top_up_tasks
 from actaim2.data.storage import MAX_TRAJECTORY_BYTES, DatasetReader, decode_trajectory
 from actaim2.data.torch_dataset import KeyframeDataset, ModeDataset
 from actaim2.data.trajectory import OBSERVATION_NAMES
@@ -60,6 +61,20 @@ def test_tiny_collection_end_to_end(tmp_path, capsys):
     assert main(["stats", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "Success rate per category and sampler" in printed and "storage_furniture" in printed
+
+
+def test_counts_per_split_and_random_replacements_of_skipped_trajectories(tmp_path):
+    config = CollectConfig(out=tmp_path, objects=(("box", 0), OBJECT), per_object={"random": 4, "grasp": 3}, other_splits_share=0.5)
+    ids = [t.tid for s in ("random", "grasp") for t in stage_tasks(config, s, range(4))]
+    assert ids == ["box_000-random-00000", "box_000-random-00001"] + [f"storage_furniture_000-random-{k:05d}" for k in range(4)] + \
+        ["box_000-grasp-00000", "box_000-grasp-00001"] + [f"storage_furniture_000-grasp-{k:05d}" for k in range(3)]  # held out: half, rounded up
+    assert top_up_tasks(config) == []
+    given_up = [("box_000-grasp-00000", "grasp"), ("box_000-grasp-00001", "grasp"), ("storage_furniture_000-gmm-00000", "gmm")]
+    (tmp_path / SKIPPED_FILE).write_text("".join(json.dumps({"id": i, "sampler": s, "reasons": ["sampler found no action"]}) + "\n"
+                                                 for i, s in given_up))
+    tasks = top_up_tasks(config)  # the box's two grasp trajectories become random ones past its random count; GMM ones are not explore
+    assert [(t.tid, t.sampler, t.index, t.seed) for t in tasks] == [
+        (f"box_000-random-{k:05d}", "random", k, derive_seed(0, "box_000", 1, k)) for k in (2, 3)]
 
 
 def test_a_task_run_again_gives_the_same_trajectory(tmp_path):

@@ -1,7 +1,8 @@
 """The collection loop (paper Algorithm 1): explore, learn E, label, adapt, label again.
 
 Stages, each resumable (a stored or skipped trajectory id is never run again):
-  1. explore   random and heuristic-grasp trajectories on every object
+  1. explore   random and heuristic-grasp trajectories on every object; each one given up on is
+               replaced by one more random trajectory (top-up), so every object keeps its count
   2. encoder   the default encoder E is trained on the training split's observations (unless a
                file is given, e.g. a VGG-19 encoder)
   3. label     the moved parts' motion from O_init and O_final (part_motion.py), z = E(O_init) -
@@ -70,6 +71,7 @@ SAMPLER_CODES = {"random": 1, "grasp": 2, "gmm": 3}
 PRECHECK_IK_RESTARTS = 8
 IN_FLIGHT_PER_WORKER = 3
 SKIPPED_FILE = "skipped.jsonl"  # trajectories given up on (no feasible sample): not retried on resume
+TOP_UP_ROUNDS = 3  # random replacements of skipped explore trajectories (replacements can be skipped too)
 
 log = logging.getLogger(__name__)
 
@@ -367,6 +369,29 @@ def collection_objects(config: CollectConfig) -> list[tuple[str, str, int, str, 
             + [(f.object_id, f.category, -1, f.split, f.folder) for f in config.folders])
 
 
+def top_up_tasks(config: CollectConfig) -> list[Task]:
+    """One more random trajectory on an object for each of its explore trajectories given up on.
+
+    A sampler can find nothing to do on an object (the grasp sampler on a lid lip it sees from
+    one side only): random trajectories, indices past the random count, keep every object at
+    its explore count. Derived from skipped.jsonl, so a resumed run asks for the same tasks.
+    """
+    skipped: dict[str, int] = {}  # trajectory id prefix <object>-: explore trajectories given up on
+    path = config.out / SKIPPED_FILE
+    for line in path.read_text().splitlines() if path.exists() else []:
+        record = json.loads(line)
+        if record["sampler"] in EXPLORE_SAMPLERS:
+            prefix = record["id"].rsplit("-", 2)[0]  # trajectory_id: <object>-<sampler>-<index>
+            skipped[prefix] = skipped.get(prefix, 0) + 1
+    tasks = []
+    for oid, category, instance, split, folder in collection_objects(config):
+        start = per_object(config, "random", split)
+        for k in range(start, start + skipped.get(trajectory_id(oid, "random", 0).rsplit("-", 2)[0], 0)):
+            tasks.append(Task(trajectory_id(oid, "random", k), category, instance, split, "random", k,
+                              derive_seed(config.seed, oid, SAMPLER_CODES["random"], k), None, folder))
+    return tasks
+
+
 def per_object(config: CollectConfig, sampler: str, split: str) -> int:
     """Trajectories of ``sampler`` on one object of ``split``."""
     n = config.per_object.get(sampler, 0)
@@ -448,6 +473,11 @@ def collect(config: CollectConfig) -> dict:
     with DatasetWriter(config.out, info) as writer:
         explore = [t for s in EXPLORE_SAMPLERS for t in stage_tasks(config, s, range(config.per_object.get(s, 0)))]
         report["stages"].append(run_tasks(config, writer, explore, "explore"))
+        for _ in range(TOP_UP_ROUNDS):
+            summary = run_tasks(config, writer, top_up_tasks(config), "explore top-up")
+            if summary["trajectories"] + summary["skipped"] + summary["errors"] == 0:  # nothing left to replace
+                break
+            report["stages"].append(summary)
         if n_gmm > 0 or any(e["split"] == TRAIN for e in writer.entries):  # labels need TRAIN trajectories
             report["labelling"] = _label(config)
         for r in range(config.rounds if n_gmm > 0 else 0):
