@@ -91,6 +91,8 @@ def throughput_table(root: Path) -> str:
 
 def labelling_table(report: dict) -> str:
     """The visual label's accuracy per split and per category, and the measured alternatives."""
+    if "method" not in report:  # labelling.json of the per-object score this version replaced
+        return "labelled by an earlier version (per-object score): run the same `actaim2 collect` again to relabel"
     metrics = ("accuracy", "balanced_accuracy", "precision", "recall")
     lines = [f"label: {report['method']}; calibrated on split '{report['calibration_split']}'", "",
              "| split | trajectories | successes (gt) | accuracy | balanced accuracy | precision | recall | false pos. | false neg. |",
