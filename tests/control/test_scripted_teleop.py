@@ -18,6 +18,9 @@ def test_scripted_teleop_records_a_pull(start_node, tmp_path):
     start_node("actaim2_control", "control_node", {"robot": ROBOT})
     recorder = start_node("actaim2_policy", "bag_recorder", {"output": str(tmp_path / "demo"), "discovery_period": 0.2,
                                                              "topics": ["/keypose", "/interaction_mode", "/episode"]})
+    # The recorder subscribes to a topic once it sees its publisher (control_node's /keypose):
+    # the operator starts only then, or INIT could be published before anyone records it.
+    assert wait_for(lambda: "/keypose [" in recorder.output(), 60.0), recorder.output()
     teleop = start_node("actaim2_control", "scripted_teleop", {"robot": ROBOT, "episodes": 1, "modes": ["pull"],
                                                                 "joints": ["drawer_1_joint"], "others_fraction": 0.0,
                                                                 **SCENE})
