@@ -55,6 +55,10 @@ def test_replay_into_fusion_node_matches_the_golden_outputs(bag, ros_node, start
     # node would then extrapolate the robot's pose instead of interpolating it as the reference does
     fusion = start_node("actaim2_perception", "fusion_node", {"robot": golden.ROBOT, "perception_config": golden.PERCEPTION,
                                                               "joint_state_wait": 1.0})
+    # The player waits for fusion_node's subscriptions only: the first frame's outputs are lost
+    # unless this test's subscriptions have discovered fusion_node's publishers before it plays.
+    assert wait_for(lambda: ros_node.count_publishers("/fused_points") >= 1 and ros_node.count_publishers("/ortho_views") >= 1,
+                    60.0), fusion.output()
     player = start_node("actaim2_policy", "bag_player", {"bag": str(bag), "topics": ["/points2", "/joint_states", "/tf_static"],
                                                           "wait_for_subscribers": ["/points2", "/joint_states"]})
     assert wait_for(lambda: not player.alive(), 120.0), player.output()
