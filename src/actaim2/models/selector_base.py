@@ -13,6 +13,7 @@ differ only in their latent; all of them
 """
 from __future__ import annotations
 
+import abc
 import dataclasses
 from dataclasses import dataclass, field
 
@@ -73,7 +74,7 @@ class SampleResult:
     cluster_probabilities: torch.Tensor  # (B, K) the distribution the cluster was drawn from; (B, 0) for cvae
 
 
-class ModeSelector(nn.Module):
+class ModeSelector(nn.Module, abc.ABC):
     """Base class: condition encoder, decoder, z standardisation. Subclasses add the latent."""
 
     def __init__(self, config: SelectorConfig):
@@ -115,19 +116,23 @@ class ModeSelector(nn.Module):
             raise ValueError(f"cluster must be in 0..{self.config.clusters - 1}, got {cluster}")
         return torch.full((batch,), int(cluster), dtype=torch.long, device=device)
 
+    @abc.abstractmethod
     def draw_noise(self, batch: int, generator: torch.Generator | None = None,
                    device: torch.device | str = "cpu") -> dict[str, torch.Tensor]:
         """The training forward's random draws, explicit so a batch can be split reproducibly (DDP test)."""
-        raise NotImplementedError
+        ...
 
+    @abc.abstractmethod
     def sample(self, views: torch.Tensor, cluster: int | None = None,
                generator: torch.Generator | None = None) -> SampleResult:
-        raise NotImplementedError
+        ...
 
+    @abc.abstractmethod
     def reconstruct(self, views: torch.Tensor, eps_true: torch.Tensor) -> torch.Tensor:
         """Deterministic reconstruction of a known eps through the posterior means (validation)."""
-        raise NotImplementedError
+        ...
 
+    @abc.abstractmethod
     def assign_clusters(self, views: torch.Tensor, eps_true: torch.Tensor) -> torch.Tensor:
         """(B,) the cluster a known eps belongs to (-1 without discrete modes)."""
-        raise NotImplementedError
+        ...
