@@ -24,6 +24,7 @@ COMMANDS: dict[tuple[str, ...], tuple[str, str]] = {
     ("prepare-objects",): ("actaim2.sim.objects.prepare_cli", "convex decomposition of real object folders into the hull cache"),
     ("stats",): ("actaim2.data.stats_cli", "statistics of a collected dataset"),
     ("train",): ("actaim2.train.train_cli", "train the policy: mode selector, action predictor, joint phase"),
+    ("validate",): ("actaim2.train.validate_cli", "curves and validation figures of a training run (errors in mm and deg, cluster usage)"),
     ("evaluate",): ("actaim2.eval.evaluate_cli", "SSR and Mode SSR tables of the policy and the baselines in simulation"),
     ("bag2dataset",): ("actaim2.finetune.bag2dataset_cli", "recorded teleop bags -> a training dataset (keyframes, views, embeddings, labels)"),
     ("finetune",): ("actaim2.finetune.finetune_cli", "fine-tune a checkpoint's selector and predictor on demonstrations"),

@@ -39,19 +39,15 @@ def parent(converted, tmp_path_factory):
     from actaim2.data.splits import TRAIN
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.perception.config import load_perception_config
-    from actaim2.perception.pipeline import Perception
-    from actaim2.perception.self_filter import RobotSelfFilter
-    from actaim2.robots import load_robot_spec
-    from actaim2.train.data import build_cache, cache_folder, load_cache
+    from actaim2.train.data import ensure_cache, open_cache
     from actaim2.train.distributed import init_distributed
     from actaim2.train.loop import POLICY, Trainer
 
     config = load_perception_config("azure_kinect").replace(resolution=RESOLUTION)
     record = checkpoint.perception_record(config)
-    self_filter = RobotSelfFilter(load_robot_spec("kinova_j2s6s200"), config.self_filter_margin)
-    build_cache(converted.dataset, Perception(config, self_filter), [TRAIN], record["digest"], show_progress=False)
+    ensure_cache(converted.dataset, config, [TRAIN], show_progress=False)
     placement = CubePlacement.of(config)
-    data = load_cache(cache_folder(converted.dataset, [TRAIN], record["digest"]), placement)
+    data = open_cache(converted.dataset, config, [TRAIN])
     out = tmp_path_factory.mktemp("parent")
     Trainer(PARENT_CONFIG, data, None, placement, record, dataset_digest(converted.dataset), out,
             init_distributed("cpu"), show_progress=False).run()

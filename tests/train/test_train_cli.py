@@ -94,6 +94,16 @@ def test_train_command_runs_all_phases_and_writes_loadable_checkpoints(dataset, 
     # A finished run resumes to nothing left to do, and the cache is reused.
     assert cli_main(args + ["--resume"]) == 0
     assert len(list((dataset / "cache").iterdir())) == 1
+    # Curves and validation figures of the run (the fixture has one split: measured on train_seen here).
+    assert cli_main(["validate", str(out), "--data", str(dataset), "--split", "train_seen", "--no-progress"]) == 0
+    report = json.loads((out / "validation.json").read_text())
+    assert report["weights_sha256"] == policy.meta["weights_sha256"] and report["selector"]["trajectories"] == 11
+    assert sum(report["selector"]["posterior"]["counts"]) == 11 == sum(report["selector"]["prior_draws"]["counts"])
+    for figures in report["actions"].values():
+        assert figures["keyframes"] == 44
+        assert 0.0 <= figures["translation_median_mm"] <= figures["translation_p90_mm"] < 2000.0
+        assert 0.0 <= figures["rotation_median_deg"] <= figures["rotation_p90_deg"] <= 180.0
+    assert (out / "curves.png").stat().st_size > 10_000 and "| true z" in (out / "validation.md").read_text()
 
 
 def test_baseline_selector_reuses_the_goal_rvt_predictor(dataset, tmp_path):

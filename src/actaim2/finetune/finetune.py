@@ -42,12 +42,9 @@ from actaim2.finetune.clusters import assign_clusters, cluster_table
 from actaim2.finetune.heldout import heldout_rows
 from actaim2.models.view_geometry import CubePlacement
 from actaim2.perception.config import PerceptionConfig
-from actaim2.perception.pipeline import Perception
-from actaim2.perception.self_filter import RobotSelfFilter
-from actaim2.robots import load_robot_spec
 from actaim2.train import checkpoint
 from actaim2.train.config import TrainConfig
-from actaim2.train.data import TrainingData, build_cache, cache_folder, dataset_digest, load_cache
+from actaim2.train.data import TrainingData, dataset_digest, ensure_cache, open_cache
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer
 
@@ -147,10 +144,9 @@ def finetune(parent: str | Path, dataset: str | Path, out: str | Path, config: F
     encoder = check_encoder(meta, dataset, Path(pretraining) if pretraining else None)
     reader = DatasetReader(dataset)
     robot = reader.info.get("robot", "panda")
-    self_filter = RobotSelfFilter(load_robot_spec(robot), perception.self_filter_margin) if perception.remove_robot_views else None
-    build_cache(dataset, Perception(perception, self_filter), [TRAIN], record["digest"], show_progress)
+    ensure_cache(dataset, perception, [TRAIN], show_progress)
     placement = CubePlacement.of(perception)
-    data = load_cache(cache_folder(dataset, [TRAIN], record["digest"]), placement)
+    data = open_cache(dataset, perception, [TRAIN])
     labels = [reader.by_id[i].get("mode_label", "") for i in data.ids]
     train_rows, val_rows = heldout_rows(data.ids, labels, config.heldout_fraction, config.seed)
     train, val = data.subset(train_rows), data.subset(val_rows)

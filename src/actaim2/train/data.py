@@ -158,6 +158,34 @@ def build_cache(root: str | Path, perception, splits: list[str], perception_dige
     return folder
 
 
+def ensure_cache(root: str | Path, perception_config, splits: list[str], show_progress: bool = True) -> Path:
+    """Render (or reuse) the cached views of ``splits`` under a perception configuration; the cache folder.
+
+    The robot self-filter, when the configuration asks for robot-hidden views, is the dataset's
+    own robot's (``dataset.json``), so views match what collection and serving see.
+    """
+    from actaim2.data.storage import DatasetReader
+    from actaim2.perception.pipeline import Perception
+    from actaim2.perception.self_filter import RobotSelfFilter
+    from actaim2.robots import load_robot_spec
+    from actaim2.train.checkpoint import perception_record
+
+    robot = DatasetReader(root).info.get("robot", "panda")
+    self_filter = RobotSelfFilter(load_robot_spec(robot), perception_config.self_filter_margin) \
+        if perception_config.remove_robot_views else None
+    return build_cache(root, Perception(perception_config, self_filter), splits,
+                       perception_record(perception_config)["digest"], show_progress)
+
+
+def open_cache(root: str | Path, perception_config, splits: list[str]) -> TrainingData:
+    """The cached views of ``splits`` (built by :func:`ensure_cache`), memory-mapped."""
+    from actaim2.models.view_geometry import CubePlacement
+    from actaim2.train.checkpoint import perception_record
+
+    folder = cache_folder(root, splits, perception_record(perception_config)["digest"])
+    return load_cache(folder, CubePlacement.of(perception_config))
+
+
 def load_cache(folder: str | Path, placement) -> TrainingData:
     folder = Path(folder)
     meta = json.loads((folder / "done.json").read_text())

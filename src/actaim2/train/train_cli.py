@@ -38,15 +38,11 @@ def main(args: argparse.Namespace) -> int:
     import torch.distributed as dist
 
     from actaim2.data.splits import TRAIN
-    from actaim2.data.storage import DatasetReader
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.perception.config import load_perception_config
-    from actaim2.perception.pipeline import Perception
-    from actaim2.perception.self_filter import RobotSelfFilter
-    from actaim2.robots import load_robot_spec
     from actaim2.train.checkpoint import perception_record
     from actaim2.train.config import load_config
-    from actaim2.train.data import build_cache, cache_folder, dataset_digest, holdout_split, load_cache
+    from actaim2.train.data import dataset_digest, ensure_cache, holdout_split, open_cache
     from actaim2.train.distributed import init_distributed, shutdown
     from actaim2.train.loop import Trainer
 
@@ -61,16 +57,13 @@ def main(args: argparse.Namespace) -> int:
     config = dataclasses.replace(config, **changes)
     ctx = init_distributed(config.device)
     perception_config = load_perception_config(args.perception)
-    info = DatasetReader(args.data).info  # its perception capture fields are checked by the torch datasets
     record = perception_record(perception_config)
-    if ctx.is_main:  # one rank renders the cache, the others wait for it
-        self_filter = RobotSelfFilter(load_robot_spec(info.get("robot", "panda")), perception_config.self_filter_margin) \
-            if perception_config.remove_robot_views else None
-        build_cache(args.data, Perception(perception_config, self_filter), [TRAIN], record["digest"], not args.no_progress)
+    if ctx.is_main:  # one rank renders the cache (the torch datasets check the dataset's capture fields), the others wait
+        ensure_cache(args.data, perception_config, [TRAIN], not args.no_progress)
     if ctx.distributed:
         dist.barrier()
-    placement = CubePlacement(tuple(perception_config.center), float(perception_config.half_extent))
-    data = load_cache(cache_folder(args.data, [TRAIN], record["digest"]), placement)
+    placement = CubePlacement.of(perception_config)
+    data = open_cache(args.data, perception_config, [TRAIN])
     train_rows, val_rows = holdout_split(data.ids, config.validation_fraction, config.seed)
     trainer = Trainer(config, data.subset(train_rows), data.subset(val_rows), placement, record, dataset_digest(args.data),
                       args.out, ctx, args.init_from, show_progress=not args.no_progress)

@@ -1,0 +1,64 @@
+"""`actaim2 validate`: curves and validation figures of a training run (issue 11, item 6).
+
+Examples:
+    actaim2 validate runs/cpu --data data/v2                       # runs/cpu/policy on train_unseen_instance
+    actaim2 validate runs/cpu --data data/v2 --split heldout_category
+
+Writes into the run folder: ``curves.png`` (training and validation curves from
+``history.jsonl``), ``validation.json`` and ``validation.md`` (translation, rotation and gripper
+errors of the predictor, the selector's reconstruction error and cluster usage on the
+visually-labelled successes of ``--split``; see actaim2.train.validation).
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("run", type=Path, help="an `actaim2 train` run folder (history.jsonl, policy)")
+    parser.add_argument("--data", type=Path, required=True, help="the dataset folder the run was trained on")
+    parser.add_argument("--checkpoint", type=Path, help="policy checkpoint stem (default <run>/policy)")
+    parser.add_argument("--split", default="train_unseen_instance", help="split whose successes are measured")
+    parser.add_argument("--perception", default="ring5", help="perception configuration the checkpoint was trained with")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+def main(args: argparse.Namespace) -> int:
+    from actaim2.models.view_geometry import CubePlacement
+    from actaim2.perception.config import load_perception_config
+    from actaim2.train import checkpoint
+    from actaim2.train.curves import plot_curves, read_history
+    from actaim2.train.data import dataset_digest, ensure_cache, open_cache
+    from actaim2.train.distributed import choose_device
+    from actaim2.train.validation import action_figures, markdown, selector_figures
+
+    stem = args.checkpoint or args.run / "policy"
+    perception = load_perception_config(args.perception)
+    device = choose_device("auto")
+    try:
+        policy = checkpoint.load_policy(stem, checkpoint.perception_record(perception), device)
+    except checkpoint.CheckpointError as exc:
+        print(f"actaim2 validate: {exc}")
+        return 1
+    if policy.selector is None or policy.predictor is None:
+        print(f"actaim2 validate: {stem} must hold both a selector and a predictor")
+        return 1
+    ensure_cache(args.data, perception, [args.split], not args.no_progress)
+    data = open_cache(args.data, perception, [args.split])
+    actions = action_figures(policy.selector, policy.predictor, data, CubePlacement.of(perception), device)
+    selector = selector_figures(policy.selector, data, device)
+    digest = policy.meta.get("weights_sha256")
+    report = {"checkpoint": str(stem), "weights_sha256": digest, "dataset": str(args.data),
+              "dataset_digest": dataset_digest(args.data), "split": args.split,
+              "actions": {k: dataclasses.asdict(v) for k, v in actions.items()}, "selector": selector}
+    (args.run / "validation.json").write_text(json.dumps(report, indent=2) + "\n")
+    text = markdown(args.split, actions, selector)
+    (args.run / "validation.md").write_text(text)
+    print(text)
+    curves = plot_curves(read_history(args.run), args.run / "curves.png",
+                         title=f"{args.run} (weights {str(digest)[:12]}), validation: 10% of train_seen")
+    print(f"wrote {curves}, {args.run / 'validation.json'}, {args.run / 'validation.md'}")
+    return 0
