@@ -17,13 +17,11 @@ from __future__ import annotations
 import threading
 
 import numpy as np
-import rclpy
 from actaim2_msgs.action import ExecuteKeypose
 from actaim2_msgs.msg import Keypose as KeyposeMsg
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import PointCloud2
@@ -38,8 +36,8 @@ from actaim2.keypose import Keypose
 from actaim2.geometry import is_unit_quaternion
 from actaim2.perception.cloud_codec import CloudFormatError
 from actaim2.robots import load_robot_spec
+from actaim2.ros_main import spin
 from actaim2.ros_params import declare_parameters
-from actaim2.runtime import apply_ros_defaults
 from actaim2_perception.pointcloud2 import from_msg
 
 from actaim2_control.ros_executor import ExecutionSettings, RosExecutor
@@ -216,17 +214,5 @@ class ControlNode(Node):
         return result
 
 
-def main(args: list[str] | None = None) -> None:
-    apply_ros_defaults()
-    rclpy.init(args=args)
-    node = ControlNode()
-    executor = MultiThreadedExecutor(num_threads=4)
-    executor.add_node(node)
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
+def main(args: list[str] | None = None) -> int:
+    return spin(ControlNode, "control_node", args, threads=4)

@@ -15,25 +15,21 @@ Ctrl-C cancels a running keypose, ends the episode as a failure and exits with c
 """
 from __future__ import annotations
 
-import signal
 import threading
 import time
 from typing import Callable
 
 import numpy as np
-import rclpy
 from actaim2_msgs.srv import ResetScene
-from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 
 from actaim2.keypose import PHASE_NAMES
 from actaim2.rollout.expert import PlanningError
 from actaim2.rollout.scripted_teleop import ScriptedTeleoperator, judged_success, task_for_label
+from actaim2.ros_main import run_client
 from actaim2.ros_params import declare_parameters
-from actaim2.runtime import apply_ros_defaults
 from actaim2.sim.env import SimEnv
 
 from actaim2_control.teleop_io import TeleopOutput
@@ -189,35 +185,19 @@ class ScriptedTeleop(Node):
         return success, verdict + (f"; {note}" if note else "")
 
 
-def main(args: list[str] | None = None) -> int:
-    apply_ros_defaults()
-    # No rclpy signal handler: the context must stay up until the running goal is cancelled.
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    stop = threading.Event()
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: stop.set())
-    try:
-        node = ScriptedTeleop(stop)
-    except (ValueError, OSError) as exc:
-        rclpy.logging.get_logger("scripted_teleop").error(f"cannot start: {exc}")
-        rclpy.try_shutdown()
-        return 1
-    executor = MultiThreadedExecutor(num_threads=2)
-    executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
-    code = 1
+def demonstrate(node: ScriptedTeleop, stop: threading.Event) -> int:
+    """The episodes: 0 when some were recorded, INTERRUPTED after Ctrl-C, else 1."""
     try:
         _, episodes = node.run()
-        code = INTERRUPTED if stop.is_set() else (0 if episodes else 1)
     except EpisodeFailure as exc:
         node.get_logger().error(str(exc))
-    finally:
-        executor.shutdown()
-        spinner.join()  # out of rcl before the node goes
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+        return 1
+    return INTERRUPTED if stop.is_set() else (0 if episodes else 1)
+
+
+def main(args: list[str] | None = None) -> int:
+    # SIGINT / SIGTERM only set stop: the context must stay up until the running goal is cancelled.
+    return run_client(ScriptedTeleop, demonstrate, "scripted_teleop", args)
 
 
 if __name__ == "__main__":

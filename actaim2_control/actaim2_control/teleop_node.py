@@ -17,17 +17,13 @@ beside control_node and the robot (or sim_node), and record with bag_recorder.
 """
 from __future__ import annotations
 
-import signal
 import sys
 import threading
 import time
 
 import numpy as np
-import rclpy
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
 
 from actaim2.control.collision import CollisionChecker, Workspace
 from actaim2.control.ik import IKOptions, IKSolver
@@ -37,8 +33,8 @@ from actaim2.control.teleop import (AskLabel, End, Gripper, Jog, JogSettings, La
 from actaim2.control.trajectory import JointTrajectory, Limits
 from actaim2.keypose import PHASE_NAMES
 from actaim2.robots import load_robot_spec
+from actaim2.ros_main import run_client
 from actaim2.ros_params import declare_parameters
-from actaim2.runtime import apply_ros_defaults
 
 from actaim2_control.ros_executor import ExecutionSettings, RosExecutor
 from actaim2_control.teleop_io import TeleopOutput
@@ -175,38 +171,22 @@ class TeleopNode(Node):
         return False
 
 
-def main(args: list[str] | None = None) -> int:
-    apply_ros_defaults()
-    # No rclpy signal handler: Ctrl-C must cancel a running keypose and end the episode first.
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    stop = threading.Event()
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: stop.set())
-    try:
-        node = TeleopNode()
-    except (ValueError, OSError) as exc:
-        rclpy.logging.get_logger("teleop_node").error(f"cannot start: {exc}")
-        rclpy.try_shutdown()
-        return 1
-    executor = MultiThreadedExecutor(num_threads=2)
-    executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
+def at_terminal(node: TeleopNode, stop: threading.Event) -> int:
+    """The key loop on this process's terminal: its exit code, 2 without a terminal, 1 at end of input."""
     try:
         with KeyboardTerminal(sys.stdin, sys.stdout) as keys:
-            code = node.run(keys, stop)
+            return node.run(keys, stop)
     except NotATerminal as exc:
         node.get_logger().error(str(exc))
-        code = 2
+        return 2
     except EOFError as exc:
         node.get_logger().error(str(exc))
-        code = 1
-    finally:
-        executor.shutdown()
-        spinner.join()  # out of rcl before the node goes
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+        return 1
+
+
+def main(args: list[str] | None = None) -> int:
+    # SIGINT / SIGTERM only set stop: Ctrl-C must cancel a running keypose and end the episode first.
+    return run_client(lambda _stop: TeleopNode(), at_terminal, "teleop_node", args)
 
 
 if __name__ == "__main__":

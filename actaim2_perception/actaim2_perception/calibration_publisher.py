@@ -10,8 +10,8 @@ from __future__ import annotations
 from rclpy.node import Node
 
 from actaim2.perception.calibration import load_calibration
+from actaim2.ros_main import spin
 from actaim2.ros_params import declare_parameters
-from actaim2_perception.node_runner import run
 from actaim2_perception.transforms import StaticTransformPublisher, matrix_to_transform
 
 
@@ -32,7 +32,7 @@ class CalibrationPublisher(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    return run(CalibrationPublisher, "calibration_publisher", args)
+    return spin(CalibrationPublisher, "calibration_publisher", args)
 
 
 if __name__ == "__main__":

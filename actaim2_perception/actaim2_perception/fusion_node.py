@@ -45,8 +45,8 @@ from actaim2.perception.self_filter import RobotSelfFilter
 from actaim2.perception.static_tf import StaticTransformBuffer, UnknownFrameError
 from actaim2.perception.time_sync import ApproximateTimeSync
 from actaim2.robots import load_robot_spec
+from actaim2.ros_main import spin
 from actaim2.ros_params import declare_parameters
-from actaim2_perception.node_runner import run
 from actaim2_perception.pointcloud2 import from_msg, to_msg
 from actaim2_perception.transforms import listen_tf_static
 
@@ -295,7 +295,7 @@ class FusionNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     keep_freed_memory()  # per-set buffers stay in the heap instead of being faulted in again (2-4 ms a set)
-    return run(FusionNode, "fusion_node", args)
+    return spin(FusionNode, "fusion_node", args)
 
 
 if __name__ == "__main__":

@@ -18,8 +18,8 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.time import Time
 from sensor_msgs.msg import JointState, PointCloud2
 
+from actaim2.ros_main import spin
 from actaim2.ros_params import declare_parameters
-from actaim2_perception.node_runner import run
 from actaim2_perception.pointcloud2 import to_msg
 from actaim2_perception.transforms import StaticTransformPublisher, matrix_to_transform
 
@@ -101,11 +101,11 @@ class LatencyProbe(Node):
             result["error"] = error
         print(json.dumps(result), flush=True)
         self.done = True
-        self.context.try_shutdown()  # ends rclpy.spin in node_runner.run
+        self.context.try_shutdown()  # ends actaim2.ros_main.spin
 
 
 def main(args: list[str] | None = None) -> int:
-    return run(LatencyProbe, "latency_probe", args)
+    return spin(LatencyProbe, "latency_probe", args)
 
 
 if __name__ == "__main__":

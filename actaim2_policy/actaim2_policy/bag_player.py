@@ -24,8 +24,8 @@ from rosgraph_msgs.msg import Clock
 from actaim2.bags.playback import PlayOptions, Player, parse_remaps
 from actaim2.bags.qos import replay_choice
 from actaim2.bags.source import BagSource
+from actaim2.ros_main import spin_until
 from actaim2.ros_params import declare_parameters
-from actaim2_policy.node_main import run
 from actaim2_policy.ros_bags import message_class, rclpy_qos
 
 PARAMETERS = {
@@ -50,8 +50,7 @@ class BagPlayer(Node):
         p = declare_parameters(self, PARAMETERS)
         if not p["bag"]:
             raise ValueError("parameter 'bag' is empty: give a bag directory or an .mcap/.db3 file")
-        self.done = threading.Event()
-        self._stop = stop
+        self._stop = stop  # set on Ctrl-C / SIGTERM, or by _play when the bag is played
         self._summary_file = str(p["summary_file"])
         remap = parse_remaps([r for r in p["remap"] if r])
         options = PlayOptions(
@@ -104,7 +103,7 @@ class BagPlayer(Node):
             self._stop.wait(0.05)
         if not self._stop.wait(delay):
             self._player.run()
-        self.done.set()
+        self._stop.set()
 
     def finish(self) -> int:
         self._thread.join()
@@ -122,7 +121,7 @@ class BagPlayer(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    return run(BagPlayer, "bag_player", args)
+    return spin_until(BagPlayer, "bag_player", args)
 
 
 if __name__ == "__main__":

@@ -37,8 +37,8 @@ from actaim2.bags.metadata import TopicSpec
 from actaim2.bags.qos import record_choice
 from actaim2.bags.recorder import Recorder, RecordSummary, unique_path
 from actaim2.bags.writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE, STORAGES, BagWriter
+from actaim2.ros_main import spin_until
 from actaim2.ros_params import declare_parameters
-from actaim2_policy.node_main import run
 from actaim2_policy.ros_bags import bag_qos, install_prefixes, message_class, rclpy_qos
 
 PARAMETERS = {
@@ -68,8 +68,7 @@ class BagRecorder(Node):
     def __init__(self, stop: threading.Event) -> None:
         super().__init__("bag_recorder")
         p = declare_parameters(self, PARAMETERS)
-        del stop  # Ctrl-C needs nothing here: node_main calls finish(), which writes what is queued
-        self.done = threading.Event()
+        self._stop = stop  # set on Ctrl-C / SIGTERM (then finish() writes what is queued), or here on a write error
         self._storage, self._compression = str(p["storage"]), str(p["compression"])
         if self._storage not in STORAGES or self._compression not in COMPRESSIONS:
             raise ValueError(f"storage must be one of {list(STORAGES)} and compression one of {list(COMPRESSIONS)}")
@@ -112,7 +111,7 @@ class BagRecorder(Node):
 
     def _on_write_error(self, reason: str) -> None:
         self.get_logger().error(f"recording stopped: {reason}; what reached the disk stays readable")
-        self.done.set()
+        self._stop.set()
 
     # --- topics -------------------------------------------------------------------------------
     def _discover(self) -> None:
@@ -199,7 +198,7 @@ class BagRecorder(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    return run(BagRecorder, "bag_recorder", args)
+    return spin_until(BagRecorder, "bag_recorder", args)
 
 
 if __name__ == "__main__":

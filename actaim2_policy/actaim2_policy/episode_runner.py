@@ -24,7 +24,6 @@ episode as interrupted, prints the summary and exits with code 130.
 """
 from __future__ import annotations
 
-import signal
 import threading
 import time
 from datetime import datetime
@@ -32,17 +31,14 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
-import rclpy
 from actaim2_control.action_client import LockedActionClient
 from actaim2_msgs.action import ExecuteKeypose
 from actaim2_msgs.msg import EpisodeEvent, Keypose
 from actaim2_msgs.srv import PredictKeypose, ResetScene, SampleMode
 from rclpy.duration import Duration
-from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from sensor_msgs.msg import JointState, PointCloud2
 
@@ -52,8 +48,8 @@ from actaim2.policy.episodes import (EpisodeLog, EpisodeRecord, EpisodeSpec, Pha
                                      plan_episodes, summary_table)
 from actaim2.policy.requests import is_transient
 from actaim2.policy.retry import BACKOFF_CAP, Backoff, wait_until
+from actaim2.ros_main import run_client
 from actaim2.ros_params import declare_parameters
-from actaim2.runtime import apply_ros_defaults
 from actaim2_policy.grasp_baseline import GraspBaseline
 
 EPISODE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -400,31 +396,15 @@ class EpisodeRunner(Node):
         return records, interrupted
 
 
-def main(args: list[str] | None = None) -> int:
-    apply_ros_defaults()
-    # No rclpy signal handler: the context must stay up until the running goal is cancelled.
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    stop = threading.Event()
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: stop.set())
-    try:
-        node = EpisodeRunner(stop)
-    except ValueError as exc:
-        rclpy.logging.get_logger("episode_runner").error(f"cannot start: {exc}")
-        rclpy.try_shutdown()
-        return 1
-    executor = MultiThreadedExecutor(num_threads=2)
-    executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
-    try:
-        records, interrupted = node.run()
-    finally:
-        executor.shutdown()
-        spinner.join()  # out of rcl before the node goes: a thread left inside it aborted the process at exit
-        node.destroy_node()
-        rclpy.try_shutdown()
+def episodes(node: EpisodeRunner, _stop: threading.Event) -> int:
+    """The run: 0 when episodes ran, INTERRUPTED after Ctrl-C, 1 when none could run."""
+    records, interrupted = node.run()
     return INTERRUPTED if interrupted else (0 if records else 1)
+
+
+def main(args: list[str] | None = None) -> int:
+    # SIGINT / SIGTERM only set stop: the context must stay up until the running goal is cancelled.
+    return run_client(EpisodeRunner, episodes, "episode_runner", args)
 
 
 if __name__ == "__main__":

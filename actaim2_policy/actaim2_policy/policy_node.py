@@ -19,13 +19,11 @@ from __future__ import annotations
 
 import threading
 import numpy as np
-import rclpy
 import torch
 from actaim2_msgs.msg import InteractionMode, OrthoViews
 from actaim2_msgs.srv import PredictKeypose, SampleMode
 from builtin_interfaces.msg import Time
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
@@ -34,8 +32,8 @@ from actaim2.policy.inference import ROLES, PolicyLoadError, PolicyModel
 from actaim2.policy.locate import COMMITTED, installed_folders, resolve_checkpoint
 from actaim2.policy.requests import NO_VIEWS, RequestError, check_cluster, check_embedding, check_fresh, check_phase
 from actaim2.policy.views import Views, accept_views
+from actaim2.ros_main import spin
 from actaim2.ros_params import declare_parameters
-from actaim2.runtime import apply_ros_defaults
 
 VIEWS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)  # as fusion_node publishes them
 # The mode in use is state: a recorder that starts later still learns it.
@@ -189,20 +187,7 @@ class PolicyNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    apply_ros_defaults()
-    rclpy.init(args=args)
-    node = PolicyNode()
-    executor = MultiThreadedExecutor(num_threads=2)
-    executor.add_node(node)
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return spin(PolicyNode, "policy_node", args, threads=2)  # one thread per callback group (module docstring)
 
 
 if __name__ == "__main__":

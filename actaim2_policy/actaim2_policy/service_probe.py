@@ -15,15 +15,13 @@ import time
 from pathlib import Path
 
 import numpy as np
-import rclpy
 from actaim2_msgs.msg import OrthoViews
 from actaim2_msgs.srv import PredictKeypose, SampleMode
-from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 
 from actaim2.keypose import PHASE_NAMES
+from actaim2.ros_main import run_client
 from actaim2.ros_params import declare_parameters
-from actaim2.runtime import apply_ros_defaults
 from actaim2_policy.policy_node import VIEWS_QOS
 
 PARAMETERS = {
@@ -95,28 +93,21 @@ class ServiceProbe(Node):
         return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def main(args: list[str] | None = None) -> int:
-    apply_ros_defaults()
-    rclpy.init(args=args)
-    node = ServiceProbe()
-    executor = MultiThreadedExecutor(num_threads=2)
-    executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
-    code = 0
+def probe(node: ServiceProbe, _stop: threading.Event) -> int:
+    """Time the calls and write the summary: 0, or 1 with the reason logged."""
     try:
         summary = node.run()
-        with open(node.p["summary_file"], "w") as f:
-            json.dump(summary, f)
     except (RuntimeError, AssertionError) as exc:
         node.get_logger().error(str(exc))
-        code = 1
-    finally:
-        executor.shutdown()
-        spinner.join()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+        return 1
+    with open(node.p["summary_file"], "w") as f:
+        json.dump(summary, f)
+    return 0
+
+
+def main(args: list[str] | None = None) -> int:
+    # rclpy's own Ctrl-C handling: a benchmark client has no goal to cancel.
+    return run_client(lambda _stop: ServiceProbe(), probe, "service_probe", args, own_signals=False)
 
 
 if __name__ == "__main__":

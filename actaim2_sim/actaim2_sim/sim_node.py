@@ -23,37 +23,34 @@ MultiThreadedExecutor. Physics keeps priority: camera frames that fall due while
 behind are skipped, never queued.
 
 Shutdown (Ctrl-C, SIGTERM): rclpy's own signal handler would shut the context down at once, so
-running goals could not be answered. Here the signal only sets a flag that the spin loop polls;
-then the loop stops, every running goal is aborted, goals that arrive later are aborted at once
-(an execute callback left waiting would keep its executor thread, and with it the process, alive
-forever), and the executor spins a little longer so the clients get their results.
+running goals could not be answered. Here the signal only sets a flag that the spin loop polls
+(:func:`actaim2.ros_main.spin_until`); then the loop stops, every running goal is aborted, goals
+that arrive later are aborted at once (an execute callback left waiting would keep its executor
+thread, and with it the process, alive forever), and the executor spins a little longer so the
+clients get their results.
 """
 from __future__ import annotations
 
 import os
-import signal
 import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import rclpy
 from actaim2_msgs.srv import ResetScene
 from builtin_interfaces.msg import Time
 from control_msgs.action import FollowJointTrajectory, GripperCommand
 from rclpy.action import ActionServer, CancelResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
-from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from actaim2.runtime import apply_ros_defaults
+from actaim2.ros_main import SPIN_POLL, spin_until
 from actaim2.sim.env import SimEnv
 from actaim2.sim.gripper_action import GripperGoal, GripperOutcome
 from actaim2.sim.joint_trajectory import (
@@ -75,8 +72,6 @@ from actaim2_sim.parameters import declare_parameters
 
 MAX_CATCH_UP = 0.25  # wall seconds of lag made up per tick at most (no spiral of death when behind)
 FAST_TICK_BUDGET = 0.02  # wall seconds of stepping per tick with real_time_factor 0
-SHUTDOWN_SIGNALS = (signal.SIGINT, signal.SIGTERM)
-SPIN_POLL = 0.1  # wall seconds: the longest a spin loop waits before it looks at its flag or deadline again
 RELEASE_TIMEOUT = 1.0  # wall seconds at most for aborted goals' execute callbacks to return
 RESULT_FLUSH = 0.2  # wall seconds of spinning that hand the last results to their clients
 
@@ -418,11 +413,13 @@ class SimNode(Node):
         self._arm_goal, self._gripper_goal = None, None
         return aborted
 
-    def close(self, executor: MultiThreadedExecutor) -> None:
+    def finish(self) -> int:
         """Stop the loop, abort every running goal (and, from now on, every new one), and spin
-        ``executor`` until the loop has stopped, the aborted goals' execute callbacks have returned
-        and their results have gone out to the clients: call before shutting the executor down
-        (a tick still in flight then would use the destroyed executor)."""
+        this node's executor until the loop has stopped, the aborted goals' execute callbacks have
+        returned and their results have gone out to the clients: called by
+        :func:`actaim2.ros_main.spin_until` before it shuts the executor down (a tick still in
+        flight then would use the destroyed executor). Exit code 0."""
+        executor = self.executor
         with self._lock:
             self._closing = True
             aborted = [goal for goal in self._abort_goals("sim_node shutting down") if goal.handle is not None]
@@ -437,6 +434,7 @@ class SimNode(Node):
         flushed = time.monotonic() + RESULT_FLUSH
         while time.monotonic() < flushed and executor.context.ok():
             executor.spin_once(timeout_sec=SPIN_POLL)
+        return 0
 
     # -- scene --------------------------------------------------------------------------------
     def _on_reset_scene(self, request: ResetScene.Request, response: ResetScene.Response) -> ResetScene.Response:
@@ -493,44 +491,10 @@ def _trajectory_result(outcome: Outcome) -> FollowJointTrajectory.Result:
     return FollowJointTrajectory.Result(error_code=outcome.error_code, error_string=outcome.message)
 
 
-def shutdown_requested() -> threading.Event:
-    """An event that SIGINT and SIGTERM set, instead of raising KeyboardInterrupt wherever the
-    main thread is: inside the executor's own code that can leave the executor unable to spin for
-    the goals' results, inside SAPIEN's start-up it crashed the process at exit. A signal during
-    start-up is acted on as soon as the node is up."""
-    requested = threading.Event()
-    for signum in SHUTDOWN_SIGNALS:
-        signal.signal(signum, lambda *_: requested.set())
-    return requested
-
-
-def main(args: list[str] | None = None) -> None:
-    apply_ros_defaults()
-    # No rclpy signal handler: the context must stay valid until the running goals have been
-    # aborted and answered (see the module docstring, "Shutdown").
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    requested = shutdown_requested()
-    try:
-        node = SimNode()
-    except ValueError as exc:  # a bad parameter: say which one, without a traceback
-        rclpy.logging.get_logger("sim_node").fatal(str(exc))
-        rclpy.try_shutdown()
-        raise SystemExit(1) from None
+def main(args: list[str] | None = None) -> int:
     # Action goals wait in executor threads for the loop to finish them: allow several at once.
-    executor = MultiThreadedExecutor(num_threads=8)
-    executor.add_node(node)
-    try:
-        # Python runs signal handlers only between the executor's waits: SPIN_POLL bounds them.
-        while not requested.is_set() and executor.context.ok():
-            executor.spin_once(timeout_sec=SPIN_POLL)
-    except ExternalShutdownException:
-        pass
-    finally:
-        node.close(executor)
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
+    return spin_until(lambda _stop: SimNode(), "sim_node", args, threads=8)
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

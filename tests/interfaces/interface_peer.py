@@ -12,16 +12,14 @@ from __future__ import annotations
 
 import time
 
-import rclpy
 from rclpy.action import ActionServer, CancelResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from sensor_msgs.msg import PointCloud2
 
-from actaim2.runtime import apply_ros_defaults
+from actaim2.ros_main import spin
 from actaim2_msgs.action import ExecuteKeypose
 from actaim2_msgs.msg import Keypose, OrthoViews
 from actaim2_msgs.srv import PredictKeypose, SampleMode
@@ -94,20 +92,5 @@ class InterfacePeer(Node):
         return result
 
 
-def main() -> None:
-    apply_ros_defaults()
-    rclpy.init()
-    node = InterfacePeer()
-    executor = MultiThreadedExecutor(num_threads=4)
-    executor.add_node(node)
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
-
-
 if __name__ == "__main__":
-    main()
+    raise SystemExit(spin(InterfacePeer, "interface_peer", threads=4))

@@ -1,0 +1,166 @@
+"""The main() of every ROS node executable: one function per way a node runs.
+
+* :func:`spin`: a server node that only answers callbacks. rclpy's own signal handler ends it:
+  Ctrl-C shuts the context down at once, which is all such a node needs.
+* :func:`spin_until`: a node with work to finish on Ctrl-C / SIGTERM (close a bag, abort and
+  answer running action goals). The signals only set ``stop``; the main thread spins in steps of
+  at most :data:`SPIN_POLL` (Python runs signal handlers only between the executor's waits), and
+  once ``stop`` is set calls the node's ``finish()`` while the context is still up.
+* :func:`run_client`: a client whose work runs in the main thread (episodes, a keyboard loop, a
+  benchmark) while an executor spins the node's callbacks in a thread. By default the signals
+  only set ``stop`` too, so the client can cancel its running goal before the context goes.
+
+Each applies the project's ROS defaults before ``rclpy.init()``, turns a constructor's
+ValueError or OSError (unusable parameters, an unreadable file) into one ``cannot start: <why>``
+line and exit code 1 instead of a traceback, and shuts down in the one safe order: executor,
+spinner thread (out of rcl before the node goes: a thread left inside it aborted the process at
+exit), node, context.
+
+Why here and not in a ROS package: as for :mod:`actaim2.ros_params`, every node package depends
+on this library while no ROS package is a dependency of all the others. rclpy is imported inside
+the functions, so the library stays importable without ROS.
+"""
+from __future__ import annotations
+
+import signal
+import threading
+from typing import TYPE_CHECKING, Callable, TypeVar
+
+from actaim2.runtime import apply_ros_defaults
+
+if TYPE_CHECKING:
+    from rclpy.executors import Executor
+    from rclpy.node import Node
+
+SHUTDOWN_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+SPIN_POLL = 0.1  # wall seconds: the longest a spin loop waits before it looks at its flag or deadline again
+
+
+N = TypeVar("N", bound="Node")
+
+
+def spin(make_node: Callable[[], Node], name: str, args: list[str] | None = None, threads: int = 1) -> int:
+    """Run ``make_node()`` with ``threads`` executor threads until Ctrl-C or until the node shuts
+    its context down itself (``self.context.try_shutdown()``). Exit code 0, or 1 if it cannot start."""
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+
+    apply_ros_defaults()
+    rclpy.init(args=args)
+    node = _start(make_node, name)
+    if node is None:
+        return 1
+    executor = _executor(threads)
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except RuntimeError:
+        # Ctrl-C shuts the context down from rclpy's signal handler; a subscription taken in the
+        # same instant raises RuntimeError from rcl. That is the normal end, anything else is not.
+        if rclpy.ok():
+            raise
+    finally:
+        _close(executor, node)
+    return 0
+
+
+def spin_until(make_node: Callable[[threading.Event], Node], name: str, args: list[str] | None = None,
+               threads: int = 1) -> int:
+    """Spin ``make_node(stop)`` until ``stop`` is set (SIGINT, SIGTERM, or the node itself ending
+    its run: end of replay, a write error) or the context ends; then return ``node.finish()`` (the
+    node's last work, returning the exit code), called while the context is up and the node's
+    executor (``node.executor``) can still spin. A signal during start-up is acted on as soon as
+    the node is up."""
+    from rclpy.executors import ExternalShutdownException
+
+    stop = _init_stoppable(args)
+    node = _start(lambda: make_node(stop), name)
+    if node is None:
+        return 1
+    executor = _executor(threads)
+    executor.add_node(node)
+    try:
+        while not stop.is_set() and executor.context.ok():
+            executor.spin_once(timeout_sec=SPIN_POLL)
+    except ExternalShutdownException:
+        pass
+    finally:
+        stop.set()
+        try:
+            code = node.finish()
+        finally:
+            _close(executor, node)
+    return code
+
+
+def run_client(make_node: Callable[[threading.Event], N], body: Callable[[N, threading.Event], int], name: str,
+               args: list[str] | None = None, threads: int = 2, own_signals: bool = True) -> int:
+    """Return ``body(node, stop)`` for ``node = make_node(stop)``, run in the main thread while an
+    executor with ``threads`` threads spins the node in another. ``own_signals``: SIGINT and
+    SIGTERM only set ``stop`` (the body cancels what runs and ends); False keeps rclpy's handler
+    (Ctrl-C shuts the context down at once), for a client with nothing to cancel."""
+    import rclpy
+
+    if own_signals:
+        stop = _init_stoppable(args)
+    else:
+        apply_ros_defaults()
+        rclpy.init(args=args)
+        stop = threading.Event()
+    node = _start(lambda: make_node(stop), name)
+    if node is None:
+        return 1
+    executor = _executor(threads)
+    executor.add_node(node)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
+    try:
+        return body(node, stop)
+    finally:
+        _close(executor, node, spinner)
+
+
+def _init_stoppable(args: list[str] | None) -> threading.Event:
+    """rclpy without its signal handler, and an event that SIGINT and SIGTERM set instead: rclpy's
+    handler would shut the context down before running goals could be cancelled or answered, and a
+    KeyboardInterrupt raised wherever the main thread is (inside the executor's own code, inside
+    SAPIEN's start-up) left the executor unable to spin or crashed the process at exit."""
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    apply_ros_defaults()
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop = threading.Event()
+    for signum in SHUTDOWN_SIGNALS:
+        signal.signal(signum, lambda *_: stop.set())
+    return stop
+
+
+def _start(make_node: Callable[[], N], name: str) -> N | None:
+    """The node, or None after one error line (and the context shut down) if it cannot start."""
+    import rclpy
+
+    try:
+        return make_node()
+    except (OSError, ValueError) as exc:
+        rclpy.logging.get_logger(name).error(f"cannot start: {exc}")
+        rclpy.try_shutdown()
+        return None
+
+
+def _executor(threads: int) -> Executor:
+    from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
+
+    return SingleThreadedExecutor() if threads == 1 else MultiThreadedExecutor(num_threads=threads)
+
+
+def _close(executor: Executor, node: Node, spinner: threading.Thread | None = None) -> None:
+    import rclpy
+
+    executor.shutdown()
+    if spinner is not None:
+        spinner.join()
+    node.destroy_node()
+    rclpy.try_shutdown()
