@@ -31,6 +31,7 @@ from actaim2.sim.success import SUCCESS_FRACTION, dof_success
 
 if TYPE_CHECKING:
     from actaim2.sim.observe import Observation
+    from actaim2.sim.randomisation import DomainRandomisation
     from actaim2.sim.sensor_noise import SensorNoise
 
 # Object placement variation drawn from the reset seed: front distance, lateral offset, yaw.
@@ -76,6 +77,7 @@ class SimEnv:
         gains: DriveGains = DriveGains(),
         noise: "SensorNoise | None" = None,
         hull_cache: Path | None = None,
+        randomisation: "DomainRandomisation | None" = None,
     ):
         """``cameras``: a rig name of :mod:`actaim2.sim.cameras` (``ring5``, ``azure_kinect``) or
         None for physics only. ``render_path``: ``auto``, ``sapien`` or ``raycast``
@@ -83,7 +85,10 @@ class SimEnv:
         ``noise``: a :class:`actaim2.sim.sensor_noise.SensorNoise` (default: the rig's own,
         ``SensorNoise.preset("rig", cameras)``: the documented sensor for azure_kinect, ideal ring5 cameras).
         ``hull_cache``: the folder of real objects' convex decompositions (:mod:`actaim2.sim.objects.hulls`;
-        None: the default, ``~/.cache/actaim2/hulls``)."""
+        None: the default, ``~/.cache/actaim2/hulls``). ``randomisation``: domain randomisation
+        (:mod:`actaim2.sim.randomisation`) drawn at every reset: its placement ranges replace
+        ``PLACEMENT_JITTER``, its sensor model is the default ``noise``, and each reset's draw is
+        :attr:`randomisation_draw`."""
         self.spec = load_robot_spec(robot) if isinstance(robot, str) else robot
         self.cache_dir = cache_dir
         self.hulls = HullCache(hull_cache)
@@ -100,9 +105,17 @@ class SimEnv:
             from actaim2.sim.sensor_noise import SensorNoise
 
             specs = make_rig(cameras, WORKSPACE_CENTER, width=camera_size[0], height=camera_size[1])
-            self.rig = CameraRig(self.sim.scene, specs, self.render_path,
-                                 noise if noise is not None else SensorNoise.preset("rig", cameras))
+            if noise is None:
+                noise = randomisation.sensor_noise_model(cameras) if randomisation is not None else SensorNoise.preset("rig", cameras)
+            self.rig = CameraRig(self.sim.scene, specs, self.render_path, noise)
         self.info: ResetInfo | None = None
+        self.placement_jitter = PLACEMENT_JITTER if randomisation is None else randomisation.placement_jitter()
+        self.randomiser = None
+        if randomisation is not None:
+            from actaim2.sim.randomisation import Randomiser
+
+            self.randomiser = Randomiser(randomisation, self.sim, self.rig)
+        self.randomisation_draw: dict | None = None  # the last reset's domain randomisation (lights, colours, noise)
 
     # -- scene access (cameras, node) -------------------------------------------------------
     @property
@@ -154,8 +167,8 @@ class SimEnv:
         fraction (a lid below its balance point, a toggle between its ends) ends at its nearest
         stable state, and ``dof_initial`` reports where it rests, the state success is measured from.
 
-        ``seed`` draws the placement jitter (and the cameras' noise); ``jitter=False`` places
-        the object exactly where its recipe says. ``scale`` overrides a real folder's size rule
+        ``seed`` draws the placement jitter (and the cameras' noise, and the domain randomisation);
+        ``jitter=False`` places the object exactly where its recipe says. ``scale`` overrides a real folder's size rule
         (:mod:`actaim2.sim.objects.sizing`); its ``instance`` is reported as -1.
         """
         if folder is None:
@@ -166,7 +179,7 @@ class SimEnv:
             instance = -1  # a folder is no catalogue instance
         folder = Path(folder)
         rng = np.random.default_rng(seed)
-        dx, dy, yaw = (rng.uniform(-j, j) for j in PLACEMENT_JITTER) if jitter else (0.0, 0.0, 0.0)
+        dx, dy, yaw = (rng.uniform(-j, j) for j in self.placement_jitter) if jitter else (0.0, 0.0, 0.0)
         obj = self.sim.load_object(folder, scale=scale, hulls=self.hulls)
         place(obj, obj.front_distance + dx, dy, yaw)
         if np.ndim(dof_fraction) and len(dof_fraction) != len(obj.lower):
@@ -178,6 +191,8 @@ class SimEnv:
         obj.set_qpos(initial)
         self.robot.reset(self.spec.home, self.spec.gripper_open)
         self.settle()
+        if self.randomiser is not None:  # before the rig's reset: its sensor model is part of the draw
+            self.randomisation_draw = self.randomiser.apply(seed)
         if self.rig is not None:
             self.rig.reset(seed)
         self.info = ResetInfo(obj.object_id, obj.category, int(instance), int(seed), folder, obj.dof_names,

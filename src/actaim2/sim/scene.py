@@ -37,10 +37,13 @@ class SimScene:
         self.timestep = timestep
         ground_material = sapien.physx.PhysxMaterial(GROUND_FRICTION, GROUND_FRICTION, 0.0)
         self.ground = self.scene.add_ground(0.0, render=render, material=ground_material)
+        # The lights, kept for domain randomisation (actaim2.sim.randomisation), which re-draws them per episode.
+        self.key_light: sapien.render.RenderDirectionalLightComponent | None = None
+        self.fill_light: sapien.render.RenderPointLightComponent | None = None
         if render:
             self.scene.set_ambient_light([0.35, 0.35, 0.35])
-            self.scene.add_directional_light([0.3, 0.6, -1.0], [0.7, 0.7, 0.7], shadow=False)
-            self.scene.add_point_light([0.4, -0.8, 1.6], [0.6, 0.6, 0.6], shadow=False)
+            self.key_light = self.scene.add_directional_light([0.3, 0.6, -1.0], [0.7, 0.7, 0.7], shadow=False)
+            self.fill_light = self.scene.add_point_light([0.4, -0.8, 1.6], [0.6, 0.6, 0.6], shadow=False)
         self.robot = SimRobot(self.scene, robot, keep_visuals=render, gains=gains)
         self.object: LoadedObject | None = None
         self._scale_asked: float | None = None  # the scale argument the current object was loaded with
