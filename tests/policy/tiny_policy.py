@@ -77,23 +77,28 @@ class TinyCheckpoint:
     views: np.ndarray  # (2, 5, C, R, R) float32: the test scene's views (seeds 0 and 1)
 
 
+def training_data(scenes: np.ndarray, placement: CubePlacement, trajectories: int = 16, seed: int = 0) -> TrainingData:
+    """Noisy copies of the scene views, TARGETS as every trajectory's keyposes, random task embeddings."""
+    rng = np.random.default_rng(seed)
+    views = scenes[np.arange(trajectories) % len(scenes)] + rng.normal(0.0, 0.03, (trajectories, *scenes.shape[1:]))
+    views = views.astype(np.float16)
+    keyposes = np.repeat(TARGETS[None], trajectories, axis=0)
+    gripper = np.repeat(np.array([[False, False, False, True]]), trajectories, axis=0)
+    valid = placement.contains(torch.from_numpy(keyposes[..., :3])).numpy()
+    z = rng.normal(size=(trajectories, Z_DIM)).astype(np.float32)
+    return TrainingData(views, np.repeat(views[:, None], 4, axis=1), keyposes, gripper, valid, z,
+                        [f"t{i:03d}" for i in range(trajectories)])
+
+
 def make_checkpoint(out: Path, trajectories: int = 16, seed: int = 0) -> TinyCheckpoint:
     """Train and save the tiny policy under ``out``."""
     out.mkdir(parents=True, exist_ok=True)
     config = test_perception_config()
     yaml_path = out / "perception_ring5_64.yaml"
     save_perception_config(config, yaml_path)
-    rng = np.random.default_rng(seed)
     scenes = scene_views(config)
-    views = scenes[np.arange(trajectories) % len(scenes)] + rng.normal(0.0, 0.03, (trajectories, *scenes.shape[1:]))
-    views = views.astype(np.float16)
     placement = CubePlacement.of(config)
-    keyposes = np.repeat(TARGETS[None], trajectories, axis=0)
-    gripper = np.repeat(np.array([[False, False, False, True]]), trajectories, axis=0)
-    valid = placement.contains(torch.from_numpy(keyposes[..., :3])).numpy()
-    z = rng.normal(size=(trajectories, Z_DIM)).astype(np.float32)
-    data = TrainingData(views, np.repeat(views[:, None], 4, axis=1), keyposes, gripper, valid, z,
-                        [f"t{i:03d}" for i in range(trajectories)])
+    data = training_data(scenes, placement, trajectories, seed)
     torch.manual_seed(seed)
     trainer = Trainer(CONFIG, data, None, placement, perception_record(config), "tiny-synthetic", out,
                       init_distributed("cpu"), show_progress=False)

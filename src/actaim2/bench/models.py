@@ -133,7 +133,7 @@ def bench_predictor(
 
     def forward_decode():
         with torch.inference_mode(), autocast:
-            decode_action(model(views, eps, proprio), placement)
+            decode_action(model(views, eps, proprio), placement, config.view_index)
 
     wall, cpu = time_calls(forward_decode, repeats, warmup=5, device=dev)
     target = TARGET_FORWARD_P50_MS if dev.type == "cpu" else None  # the targets are for 2 CPU cores
@@ -148,8 +148,8 @@ def bench_predictor(
     keyposes = torch.cat([position, quat / quat.norm(dim=1, keepdim=True), torch.ones(train_batch, 1)], dim=1)
 
     def train_step():
-        targets = action_targets(keyposes, placement, size)
-        targets = type(targets)(*(t.to(dev) for t in targets))
+        targets = action_targets(keyposes, placement, size, view=config.view_index)
+        targets = type(targets)(*(None if t is None else t.to(dev) for t in targets))
         with autocast:
             loss, _ = action_loss(model(views, eps, proprio), targets)
         optimiser.zero_grad(set_to_none=True)

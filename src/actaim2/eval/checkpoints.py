@@ -9,15 +9,20 @@ from actaim2.train import checkpoint
 
 
 def describe(stem: str | Path) -> dict:
-    """{path, weights_sha256, dataset_digest, perception digest, clusters, selector kind} from the JSON (no weights read)."""
+    """{path, weights_sha256, dataset_digest, perception digest, clusters, selector kind, predictor inputs and view}
+    from the JSON (no weights read)."""
+    from actaim2.models.predictor import ALL_VIEWS, INPUT_GROUPS
+
     json_path = checkpoint.paths(stem)[1]
     if not json_path.exists():
         raise FileNotFoundError(f"checkpoint {stem}: {json_path} does not exist")
     meta = json.loads(json_path.read_text())
     selector = meta.get("selector_config") or {}
+    predictor = meta.get("predictor_config") or {}
     return {"path": str(checkpoint.paths(stem)[1].with_suffix("")), "weights_sha256": meta.get("weights_sha256"),
             "dataset_digest": meta.get("dataset_digest"), "perception_digest": (meta.get("perception") or {}).get("digest"),
-            "selector": selector.get("kind"), "clusters": int(selector.get("clusters", 0)) if selector.get("kind") != "cvae" else 0}
+            "selector": selector.get("kind"), "clusters": int(selector.get("clusters", 0)) if selector.get("kind") != "cvae" else 0,
+            "predictor_inputs": list(predictor.get("inputs", INPUT_GROUPS)), "predictor_view": predictor.get("view", ALL_VIEWS)}
 
 
 def perception_of(stem: str | Path) -> PerceptionConfig:

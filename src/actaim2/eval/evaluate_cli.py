@@ -9,7 +9,9 @@ Examples:
 
 Rows: ActAIM2 (--checkpoint), Goal-RVT (--goal-rvt, default <checkpoint folder>/goal_rvt, with
 the dataset's encoder), VQVAE-RVT (--vqvae), ActAIM's CVAE (--cvae), Data Collection (--data:
-the GMM-adaptive sampler fitted on the dataset's exploration trajectories), Random (always).
+the GMM-adaptive sampler fitted on the dataset's exploration trajectories), Random (always),
+and ActAIM2's input ablations (--ablation-depth, --ablation-single-view: a predictor retrained
+on less input, sampled as ActAIM2).
 Interrupt it at any time: the same command resumes, skipping finished samples. Tables go to
 <out>/tables.md with the command and the checkpoints' digests; records to <out>/results.jsonl.
 """
@@ -33,10 +35,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--goal-rvt", type=Path, help="Goal-RVT checkpoint (default: goal_rvt beside --checkpoint, if present)")
     parser.add_argument("--vqvae", type=Path, help="VQVAE-RVT policy checkpoint")
     parser.add_argument("--cvae", type=Path, help="ActAIM (CVAE) policy checkpoint")
+    parser.add_argument("--ablation-depth", type=Path, help="ablation: policy checkpoint with a depth-only predictor "
+                                                            "(train config ablation_depth)")
+    parser.add_argument("--ablation-single-view", type=Path, help="ablation: policy checkpoint with a single-view predictor "
+                                                                  "(train config ablation_single_view)")
     parser.add_argument("--data", type=Path, help="the training dataset: Data Collection's GMMs and Goal-RVT's encoder E")
     parser.add_argument("--encoder", type=Path, help="Goal-RVT's encoder E (default: the dataset's encoder.pt)")
     parser.add_argument("--methods", default="", help="only these rows (comma separated: actaim2, data_collection, random, "
-                                                      "goal_rvt, vqvae_rvt, actaim_cvae)")
+                                                      "goal_rvt, vqvae_rvt, actaim_cvae, actaim2_depth, actaim2_single_view)")
     parser.add_argument("--splits", default="train_seen,train_unseen_instance,heldout_category",
                         help="catalogue splits to evaluate on ('' = none, with --objects)")
     parser.add_argument("--objects", type=Path, help="PartNet-Mobility folder(s) (a folder with mobility.urdf, or a folder of them): an extra split")
@@ -84,7 +90,8 @@ def _methods(args: argparse.Namespace) -> tuple[dict[str, Path], list[str]]:
     from actaim2.eval.methods import METHODS
     from actaim2.train.checkpoint import paths
 
-    checkpoints = {"actaim2": args.checkpoint, "goal_rvt": args.goal_rvt, "vqvae_rvt": args.vqvae, "actaim_cvae": args.cvae}
+    checkpoints = {"actaim2": args.checkpoint, "goal_rvt": args.goal_rvt, "vqvae_rvt": args.vqvae, "actaim_cvae": args.cvae,
+                   "actaim2_depth": args.ablation_depth, "actaim2_single_view": args.ablation_single_view}
     if checkpoints["goal_rvt"] is None and args.checkpoint is not None and paths(args.checkpoint.parent / "goal_rvt")[1].exists():
         checkpoints["goal_rvt"] = args.checkpoint.parent / "goal_rvt"
     available = [m for m, stem in checkpoints.items() if stem is not None]
@@ -124,6 +131,7 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.eval.checkpoints import describe, perception_of
     from actaim2.eval.data_collection import data_collection_samplers
     from actaim2.eval.evalset import EVAL_SET_VERSION, catalogue_objects, folder_objects
+    from actaim2.eval.methods import ABLATIONS, ablation_problem
     from actaim2.eval.results import ResultLog, RunMismatchError, check_run
     from actaim2.eval.tables import report
     from actaim2.eval.tasks import plan_tasks
@@ -135,6 +143,10 @@ def main(args: argparse.Namespace) -> int:
     try:
         stems, methods = _methods(args)
         described = {m: describe(stems[m]) for m in methods if m in stems}
+        for m in set(described) & set(ABLATIONS):
+            problem = ablation_problem(m, described[m]["predictor_inputs"], described[m]["predictor_view"])
+            if problem:
+                raise ValueError(f"{m}: checkpoint {stems[m]}: {problem}")
         configs = {m: perception_of(stems[m]) for m in described}
         perception = next(iter(configs.values())) if configs else load_perception_config(args.perception)
         for m, c in configs.items():
@@ -267,7 +279,8 @@ def _header(args, preset: str, described: dict, render_path: str, n_objects: int
              f"load average {os.getloadavg()[0]:.1f}, render path {render_path}, robot {args.robot}"]
     for method, d in described.items():
         lines.append(f"- {method}: checkpoint `{d['path']}`, weights sha256 `{d['weights_sha256']}`, "
-                     f"dataset {d['dataset_digest']}, views {d['perception_digest']}")
+                     f"dataset {d['dataset_digest']}, views {d['perception_digest']}, predictor reads "
+                     f"{'+'.join(d['predictor_inputs'])} of {d['predictor_view']} view(s)")
     if args.data is not None:
         lines.append(f"- dataset `{args.data}` digest {_data_digest(args.data)}")
     return lines

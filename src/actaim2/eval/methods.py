@@ -1,7 +1,8 @@
 """The rows of the evaluation tables: what each method is, how its samples are grouped for Mode SSR.
 
 Grouping (``mode_ssr.py`` chooses a group per mode on half of the samples):
-  cluster  the method is asked for each of its K clusters (codes) in turn: ActAIM2, VQVAE-RVT
+  cluster  the method is asked for each of its K clusters (codes) in turn: ActAIM2 and its input
+           ablations, VQVAE-RVT
   goal     the group is the goal (DoF, direction) the oracle was given: Goal-RVT
   pseudo   no discrete modes: sample ``slot`` falls in pseudo-cluster ``slot mod 8``. Slots have
            independent seeds, so this is a random partition into 8 equal pseudo-clusters: the
@@ -39,7 +40,24 @@ METHODS: dict[str, Method] = {m.name: m for m in (
            "VQ-VAE mode selector (K codes) + action predictor; samples drawn uniformly over the codes"),
     Method("actaim_cvae", "ActAIM (CVAE)", "pseudo", "--cvae",
            "CVAE mode selector (continuous latent) + action predictor"),
+    Method("actaim2_depth", "ActAIM2, depth-only predictor", "cluster", "--ablation-depth",
+           "ablation: ActAIM2's mode selector + a predictor retrained on depth (with its occupancy mask) and pixel "
+           "location only, no RGB or XYZ; sampled as ActAIM2"),
+    Method("actaim2_single_view", "ActAIM2, single-view predictor", "cluster", "--ablation-single-view",
+           "ablation: ActAIM2's mode selector + a predictor retrained on one orthographic view (its checkpoint names "
+           "which), the point from that view's heatmap and a predicted depth cell; sampled as ActAIM2"),
 )}
+# Input ablations of ActAIM2 (the paper's appendix): sampled exactly as the ActAIM2 row.
+ABLATIONS = ("actaim2_depth", "actaim2_single_view")
+
+
+def ablation_problem(method: str, inputs: list[str], view: str) -> str | None:
+    """Why a checkpoint whose predictor reads ``inputs`` of ``view`` cannot be ``method``'s row (None: it can)."""
+    if method == "actaim2_depth" and ("depth" not in inputs or {"rgb", "xyz"} & set(inputs) or view != "all"):
+        return f"its predictor reads {inputs} of view {view!r}: the depth-only row needs depth without rgb and xyz, all views"
+    if method == "actaim2_single_view" and view == "all":
+        return "its predictor reads all five views: the single-view row needs one (train config ablation_single_view)"
+    return None
 
 NOT_REPRODUCED = {
     "Where2Act": "needs per-point affordance and action-proposal networks trained on short-horizon "

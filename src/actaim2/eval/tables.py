@@ -23,7 +23,9 @@ AVG = "AVG"
 MODE_NAMES = {1: "1st", 2: "2nd", 3: "3rd", 4: "4th"}
 # The paper's AVG columns (seen, unseen instances, unseen categories), for comparison only.
 PAPER_SSR = {"actaim2": (48.6, 38.7, 32.4), "data_collection": (11.2, 12.2, 17.6), "goal_rvt": (47.8, 38.6, 29.8),
-             "actaim_cvae": (33.3, 25.2, 31.5)}
+             "actaim_cvae": (33.3, 25.2, 31.5),
+             # appendix table "less vision" (trained on depth / one RGB-D camera)
+             "actaim2_depth": (45.9, 34.4, 27.0), "actaim2_single_view": (36.2, 24.8, 13.6)}
 PAPER_MODE = {("actaim2", 1): (71.5, 61.4, 48.2), ("actaim2", 2): (27.0, 20.9, 6.9),
               ("goal_rvt", 1): (60.3, 52.7, 40.1), ("goal_rvt", 2): (33.6, 25.8, 6.9),
               ("vqvae_rvt", 1): (48.75, 39.4, 32.5), ("vqvae_rvt", 2): (0.0, 0.0, 0.0)}

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from actaim2.eval.evalset import EvalObject, reset_seed, sample_seed
-from actaim2.eval.methods import METHODS, PSEUDO_CLUSTERS
+from actaim2.eval.methods import ABLATIONS, METHODS, PSEUDO_CLUSTERS
 
 
 @dataclass(frozen=True)
@@ -39,19 +39,19 @@ class EvalTask:
 class SampleCounts:
     """Samples per object of each method.
 
-    ActAIM2 gets ``per_cluster`` samples from each of its K clusters. The baselines with groups
+    ActAIM2 (and its input ablations) gets ``per_cluster`` samples from each of its K clusters. The baselines with groups
     get ``baseline_per_group`` per group: VQVAE-RVT per code, Data Collection per pseudo-cluster
     (its Mode SSR is the yardstick ActAIM2's 2nd mode is compared with, which needs samples in
     both halves of every group: 2 or more). The others get ``per_object`` samples per object.
     """
 
-    per_cluster: int  # ActAIM2: samples from each cluster of each object
+    per_cluster: int  # ActAIM2 and its ablations: samples from each cluster of each object
     baseline_per_group: int  # VQVAE-RVT per code, Data Collection per pseudo-cluster
     per_object: int  # Random, Goal-RVT (goals visited in turn), ActAIM (CVAE)
 
     def of(self, method: str, clusters: int) -> int:
         """Samples per object of ``method`` (``clusters``: its K, 0 when not clustered)."""
-        if method == "actaim2":
+        if method == "actaim2" or method in ABLATIONS:
             return self.per_cluster * clusters
         if METHODS[method].grouping == "cluster":
             return self.baseline_per_group * clusters

@@ -4,6 +4,15 @@ Input: the five orthographic views as :mod:`actaim2.perception.ortho_views` rend
 cube-frame xyz, depth as a fraction of the cube side, occupancy), the interaction mode eps and
 the proprioception (gripper closed, phase one-hot: :func:`proprio_features`).
 
+Input ablations (the paper's appendix "less visual information"): ``PredictorConfig.inputs``
+names the input groups the network reads (:data:`INPUT_GROUPS`: rgb, xyz, depth with its
+occupancy mask, uv = the pixel-location channels) and ``PredictorConfig.view`` one view to read
+instead of all five. The network is always *given* the full rendered views and picks its inputs
+itself, so training, augmentation, caching and serving feed every checkpoint the same views and
+each reads what its JSON says. With one view the cube-grid re-projection has nothing to
+triangulate with (every cell on the pixel's ray scores the same), so a single-view predictor
+also outputs logits over the R depth cells along that view's ray (:func:`decode_action`).
+
 Network, as RVT's MVT:
   1. Two pixel-location channels (column, row in [-1, 1]) are appended to every view; RVT's
      renderer does not draw them either, the network adds them.
@@ -17,13 +26,14 @@ Network, as RVT's MVT:
   5. Translation: per view, each token's features map linearly to its patch's ``patch^2`` pixel
      logits, put in place by pixel shuffle - no full-resolution convolution (those cost more
      than the whole transformer on a CPU).
-  6. Rotation (3 x 72 Euler bins) and gripper (2) logits come from pooled features: per view the
-     maximum over tokens and the heatmap-weighted mean of tokens (RVT-1's pooling; the heatmap
-     is detached, so only the translation loss shapes it), concatenated over views with the
-     conditioning features.
+  6. Rotation (3 x 72 Euler bins) and gripper (2) logits - and a single-view predictor's depth
+     logits - come from pooled features: per view the maximum over tokens and the
+     heatmap-weighted mean of tokens (RVT-1's pooling; the heatmap is detached, so only the
+     translation loss shapes it), concatenated over views with the conditioning features.
 
 :func:`decode_action` turns the outputs into a keypose: the 3-D point by the coarse-to-fine
-cube-grid search, the rotation from the most likely bins, the gripper from its argmax.
+cube-grid search (single view: the heatmap's pixel at the most likely depth cell), the rotation
+from the most likely bins, the gripper from its argmax.
 """
 from __future__ import annotations
 
@@ -37,11 +47,16 @@ from torch import nn
 
 from actaim2.data.trajectory import PHASES
 from actaim2.models.rotation_bins import ROTATION_BINS, bins_to_quat
-from actaim2.models.view_geometry import CubePlacement, decode_points
+from actaim2.models.view_geometry import CubePlacement, decode_points, decode_points_in_view
 from actaim2.perception.ortho_views import CHANNELS, DEFAULT_RESOLUTION, VIEWS
 
 PROPRIO_DIM = 1 + len(PHASES)  # gripper closed + phase one-hot
 PIXEL_CHANNELS = 2  # column and row location, appended by the network
+ALL_VIEWS = "all"
+# Input groups a predictor can read. Occupancy goes with depth: it is the depth measurement's
+# validity mask (an empty pixel's depth is the far face), what an RGB-D camera's depth also gives.
+INPUT_GROUPS: dict[str, tuple[str, ...]] = {"rgb": ("r", "g", "b"), "xyz": ("x", "y", "z"),
+                                            "depth": ("depth", "occupancy"), "uv": ()}
 
 
 @dataclass(frozen=True)
@@ -64,16 +79,45 @@ class PredictorConfig:
     proprio_dim: int = PROPRIO_DIM
     in_channels: int = len(CHANNELS)
     views: int = len(VIEWS)
+    channel_names: tuple[str, ...] = CHANNELS  # the in_channels rendered channels, in order (perception config's)
+    inputs: tuple[str, ...] = tuple(INPUT_GROUPS)  # input groups read (ablation: e.g. depth + uv)
+    view: str = ALL_VIEWS  # "all", or the one view read (a name in ortho_views.VIEWS; ablation)
     # Dropout (attention weights and residual branches). 0 on the CPU: attention-weight dropout
     # rules out the fused attention kernel and made a training step 40% slower here; scene
     # augmentation regularises instead. RVT's 0.1 in rvt_size().
     dropout: float = 0.0
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "channel_names", tuple(self.channel_names))
+        object.__setattr__(self, "inputs", tuple(self.inputs))
         if self.image_size % self.patch:
             raise ValueError(f"patch {self.patch} must divide image_size {self.image_size}")
         if self.width % self.heads:
             raise ValueError(f"heads {self.heads} must divide width {self.width}")
+        if len(self.channel_names) != self.in_channels or not set(self.channel_names) <= set(CHANNELS):
+            raise ValueError(f"channel_names {list(self.channel_names)} must name the {self.in_channels} rendered channels "
+                             f"(names from {list(CHANNELS)})")
+        if not self.inputs or not set(self.inputs) <= set(INPUT_GROUPS) or len(set(self.inputs)) != len(self.inputs):
+            raise ValueError(f"inputs must be distinct groups from {list(INPUT_GROUPS)}, got {list(self.inputs)}")
+        if not self.read_channels:
+            raise ValueError(f"inputs {list(self.inputs)} select none of the rendered channels {list(self.channel_names)}")
+        if self.view != ALL_VIEWS and (self.view not in VIEWS or self.views != len(VIEWS)):
+            raise ValueError(f"view must be {ALL_VIEWS!r} or one of {list(VIEWS)} (of five rendered views), got {self.view!r}")
+
+    @property
+    def read_channels(self) -> tuple[int, ...]:
+        """Indices of the rendered channels the network reads (the groups of ``inputs``)."""
+        wanted = {name for group in self.inputs for name in INPUT_GROUPS[group]}
+        return tuple(i for i, name in enumerate(self.channel_names) if name in wanted)
+
+    @property
+    def view_index(self) -> int | None:
+        """The one view read, as an index into ortho_views.VIEWS; None when all are read."""
+        return None if self.view == ALL_VIEWS else VIEWS.index(self.view)
+
+    @property
+    def read_views(self) -> int:
+        return self.views if self.view_index is None else 1
 
     @classmethod
     def rvt_size(cls, embedding_dim: int, image_size: int = 224, **overrides) -> "PredictorConfig":
@@ -90,9 +134,10 @@ class PredictorConfig:
 
 
 class PredictorOutput(NamedTuple):
-    heatmaps: torch.Tensor  # (B, V, H, W) translation logits, a distribution over each view's pixels
+    heatmaps: torch.Tensor  # (B, V, H, W) translation logits over each read view's pixels (V = 1: single view)
     rotation: torch.Tensor  # (B, 3, bins) Euler-bin logits (rotation_bins.EULER_SEQUENCE order)
     gripper: torch.Tensor  # (B, 2) logits of [open, closed]
+    depth: torch.Tensor | None = None  # (B, H) single view only: logits over the depth cells along its ray
 
 
 class DecodedAction(NamedTuple):
@@ -121,8 +166,10 @@ class ActionPredictor(nn.Module):
         c = self.config = config
         self.grid = c.image_size // c.patch
         tokens_per_view = self.grid * self.grid
-        self.patch_embed = nn.Linear((c.in_channels + PIXEL_CHANNELS) * c.patch * c.patch, c.width)
-        self.position = nn.Parameter(torch.randn(1, c.views, tokens_per_view, c.width) * 0.02)
+        self.uses_uv = "uv" in c.inputs
+        read = len(c.read_channels) + (PIXEL_CHANNELS if self.uses_uv else 0)
+        self.patch_embed = nn.Linear(read * c.patch * c.patch, c.width)
+        self.position = nn.Parameter(torch.randn(1, c.read_views, tokens_per_view, c.width) * 0.02)
         self.condition = nn.Sequential(
             nn.Linear(c.embedding_dim + c.proprio_dim, c.width), nn.GELU(), nn.Linear(c.width, c.width)
         )
@@ -130,23 +177,37 @@ class ActionPredictor(nn.Module):
         self.across = nn.ModuleList(_block(c) for _ in range(c.layers_across))
         self.norm = nn.LayerNorm(c.width)
         self.heatmap_head = nn.Linear(c.width, c.patch * c.patch)
+        self.depth_cells = 0 if c.view_index is None else c.image_size
         self.action_head = nn.Sequential(
-            nn.Linear(c.views * 2 * c.width + c.width, c.width * 2),
+            nn.Linear(c.read_views * 2 * c.width + c.width, c.width * 2),
             nn.GELU(),
             nn.Dropout(c.dropout),
-            nn.Linear(c.width * 2, 3 * c.rotation_bins + 2),
+            nn.Linear(c.width * 2, 3 * c.rotation_bins + 2 + self.depth_cells),
         )
+        # Index tensors only where the network reads a subset (the full default indexes nothing).
+        self.register_buffer("channel_index", torch.tensor(c.read_channels) if len(c.read_channels) < c.in_channels
+                             else None, persistent=False)
         line = torch.linspace(-1.0, 1.0, c.image_size)
         rows, cols = torch.meshgrid(line, line, indexing="ij")
         self.register_buffer("pixel_location", torch.stack([cols, rows]), persistent=False)
 
     def forward(self, views: torch.Tensor, eps: torch.Tensor, proprio: torch.Tensor) -> PredictorOutput:
-        """views (B, V, C, H, W) as rendered; eps (B, embedding_dim); proprio (B, proprio_dim)."""
+        """views (B, V, C, H, W) as rendered (all of them); eps (B, embedding_dim); proprio (B, proprio_dim).
+
+        The network reads only the channels of ``config.inputs`` of ``config.view``: the rest of
+        ``views`` does not reach any output.
+        """
         c = self.config
         b, v, _, h, w = views.shape
         if (v, h, w) != (c.views, c.image_size, c.image_size):
             raise ValueError(f"views of shape {tuple(views.shape)}, expected (B, {c.views}, C, {c.image_size}, {c.image_size})")
-        x = torch.cat([views.reshape(b * v, -1, h, w), self.pixel_location.expand(b * v, -1, -1, -1)], dim=1)
+        if c.view_index is not None:
+            views, v = views[:, c.view_index : c.view_index + 1], 1
+        if self.channel_index is not None:
+            views = views.index_select(2, self.channel_index)
+        x = views.reshape(b * v, -1, h, w)
+        if self.uses_uv:
+            x = torch.cat([x, self.pixel_location.expand(b * v, -1, -1, -1)], dim=1)
         g, p = self.grid, c.patch
         patches = x.reshape(b, v, -1, g, p, g, p).permute(0, 1, 3, 5, 2, 4, 6).reshape(b, v, g * g, -1)
         tokens = self.patch_embed(patches)  # (B, V, N, D)
@@ -171,16 +232,25 @@ class ActionPredictor(nn.Module):
         pooled = torch.cat([features.amax(dim=2), (features * weights).sum(dim=2)], dim=-1).reshape(b, -1)
         out = self.action_head(torch.cat([pooled, cond], dim=1))
         rotation = out[:, : 3 * c.rotation_bins].reshape(b, 3, c.rotation_bins)
-        return PredictorOutput(heatmaps, rotation, out[:, 3 * c.rotation_bins :])
+        gripper = out[:, 3 * c.rotation_bins : 3 * c.rotation_bins + 2]
+        depth = out[:, 3 * c.rotation_bins + 2 :] if self.depth_cells else None
+        return PredictorOutput(heatmaps, rotation, gripper, depth)
 
     def parameter_count(self) -> int:
         return sum(p.numel() for p in self.parameters())
 
 
 @torch.no_grad()
-def decode_action(out: PredictorOutput, placement: CubePlacement) -> DecodedAction:
-    """The keypose each batch row predicts: position (world), quaternion (x, y, z, w), gripper."""
-    position = placement.to_world(decode_points(out.heatmaps))
+def decode_action(out: PredictorOutput, placement: CubePlacement, view: int | None = None) -> DecodedAction:
+    """The keypose each batch row predicts: position (world), quaternion (x, y, z, w), gripper.
+
+    ``view``: the predictor's ``config.view_index`` (None: all five views). A single-view
+    output's point is its heatmap's most likely pixel at its most likely depth cell.
+    """
+    if (view is None) != (out.depth is None):
+        raise ValueError("a single-view output needs its view index (config.view_index), a five-view one none")
+    cube = decode_points(out.heatmaps) if view is None else decode_points_in_view(out.heatmaps[:, 0], out.depth, view)
+    position = placement.to_world(cube)
     bins = out.rotation.argmax(dim=-1).cpu().numpy()
     quat = torch.from_numpy(bins_to_quat(bins, out.rotation.shape[-1]).astype(np.float32)).to(position.device)
     return DecodedAction(position, quat, out.gripper.argmax(dim=-1) == 1)

@@ -11,6 +11,10 @@ points with centre 0 and half extent 1). This module adds what learning needs on
   moved into it before they become heatmap targets (the authors' code skipped this step and
   trained on world positions against cube-frame views).
 * :func:`heatmap_targets` - Gaussian (sigma 1.5 px) soft targets around a point's projections.
+* :func:`depth_targets` and :func:`decode_points_in_view` - the same for a predictor that reads
+  one view: one view cannot triangulate (all R cells on a pixel's ray have the same score), so
+  the point is the heatmap's pixel at a depth cell predicted separately (Gaussian soft targets
+  over the R cells along the view's ray, sigma 1.5 cells, as for the pixels).
 * :func:`decode_points` - RVT's cube-grid re-projection: the 3-D point whose five projections
   carry the largest summed log-probability, searched coarse-to-fine: a 32^3 grid scored by an
   upper bound (per view, the best pixel of the cell's block), then the 9^3 fine cells around
@@ -30,7 +34,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from actaim2.perception.ortho_views import VIEWS, project
+from actaim2.perception.ortho_views import VIEWS, project, unproject
 
 HEATMAP_SIGMA = 1.5  # px, RVT's Gaussian target width
 COARSE_CELLS = 32  # cells per axis of the coarse decode grid
@@ -85,6 +89,33 @@ def heatmap_targets(points: torch.Tensor, resolution: int, sigma: float = HEATMA
     g = torch.exp(-((centres - uv[..., None]) ** 2) / (2.0 * sigma**2))  # (N, V, 2, R)
     maps = g[:, :, 1, :, None] * g[:, :, 0, None, :]  # rows (v) x columns (u)
     return maps / maps.sum(dim=(-2, -1), keepdim=True)
+
+
+def depth_targets(points: torch.Tensor, view: int, resolution: int, sigma: float = HEATMAP_SIGMA) -> torch.Tensor:
+    """(N, R) soft targets over the R fine-lattice cells along ``view``'s ray, summing to 1.
+
+    Cell j covers depths [j, j + 1) * (2 / R) from the view's face (cube frame, side 2): the
+    same lattice as the pixels, so a pixel and a depth cell name one fine cell.
+    """
+    _, _, depth = project(points.detach().cpu().double().numpy(), (0.0, 0.0, 0.0), 1.0, resolution)
+    d = torch.from_numpy(depth[view] * resolution / 2.0).to(points.device, torch.float32)  # (N,) in cells
+    centres = torch.arange(resolution, dtype=torch.float32, device=points.device) + 0.5
+    g = torch.exp(-((centres - d[:, None]) ** 2) / (2.0 * sigma**2))
+    return g / g.sum(dim=-1, keepdim=True)
+
+
+@torch.no_grad()
+def decode_points_in_view(heatmap: torch.Tensor, depth_logits: torch.Tensor, view: int) -> torch.Tensor:
+    """(B, R, R) heatmap logits of one view and (B, R) depth-cell logits -> (B, 3) cube-frame point.
+
+    The most likely pixel and the most likely depth cell (independent outputs, so this is the
+    joint argmax): the centre of that fine cell, exactly as :func:`decode_points` returns one.
+    """
+    b, resolution, _ = heatmap.shape
+    row, column = divmod(heatmap.reshape(b, -1).argmax(dim=1).cpu().numpy(), resolution)
+    depth = (depth_logits.argmax(dim=1).cpu().numpy() + 0.5) * (2.0 / resolution)
+    point = unproject(view, column, row, depth, (0.0, 0.0, 0.0), 1.0, resolution)
+    return torch.from_numpy(point.reshape(b, 3)).to(heatmap.device, torch.float32)
 
 
 def cell_centres(cells: torch.Tensor, resolution: int) -> torch.Tensor:

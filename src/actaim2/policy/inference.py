@@ -18,7 +18,11 @@ Outputs:
     cluster probabilities. The same seed and views give the same eps.
   * :meth:`PolicyModel.predict_keypose` - the keypose (pose of ``tcp`` in ``world``, quaternion
     x, y, z, w) and a confidence in 0..1: the mean over views of each heatmap's largest
-    probability times the product over the three Euler axes of the largest bin probability.
+    probability (a single-view predictor's: times its largest depth-cell probability) times the
+    product over the three Euler axes of the largest bin probability.
+
+The predictor is always fed all five views with every rendered channel; an input-ablation
+checkpoint (``predictor_config`` ``inputs`` / ``view`` in its JSON) reads its subset itself.
 """
 from __future__ import annotations
 
@@ -141,8 +145,10 @@ class PolicyModel:
         proprio = proprio_features(torch.tensor([bool(gripper_closed)], device=self.device),
                                    torch.tensor([phase], device=self.device))
         out = self.predictor(self._batch(views), torch.from_numpy(eps)[None].to(self.device), proprio)
-        action = decode_action(out, self.placement)
+        action = decode_action(out, self.placement, self.predictor.config.view_index)
         heat = torch.softmax(out.heatmaps[0].flatten(1).float(), dim=-1).amax(dim=-1).mean()
+        if out.depth is not None:
+            heat = heat * torch.softmax(out.depth[0].float(), dim=-1).amax()
         rotation = torch.softmax(out.rotation[0].float(), dim=-1).amax(dim=-1).prod()
         keypose = Keypose(phase, action.position[0].double().cpu().numpy(), action.quat_xyzw[0].double().cpu().numpy(),
                           bool(action.gripper_closed[0]))

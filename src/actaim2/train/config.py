@@ -3,6 +3,9 @@
 Unknown keys are errors (a typo must not silently fall back to a default). Sizes that depend on
 the data (the task-embedding size z_dim, the view resolution) are not configured: training
 reads them from the dataset and writes the resolved configuration into every checkpoint.
+A YAML may start from another one (``base: cpu_default``) and list only what it changes:
+mappings are merged key by key, anything else replaced (the ablation configs do this, so they
+keep the selector of the run they extend).
 """
 from __future__ import annotations
 
@@ -103,9 +106,27 @@ def _check(cls, d: dict, where: str) -> None:
 
 
 def load_config(path: str | Path) -> TrainConfig:
-    """A YAML file, or the name of a bundled one ("cpu_default", "gpu_rvt")."""
+    """A YAML file, or the name of a bundled one ("cpu_default", "gpu_rvt", "ablation_depth", ...)."""
+    return TrainConfig.from_dict(_read(path, ()))
+
+
+def _read(path: str | Path, seen: tuple[Path, ...]) -> dict:
+    """The YAML's mapping with its ``base`` chain merged in (base first, this file's keys over it)."""
     p = Path(path)
     if not p.exists() and (CONFIG_DIR / f"{path}.yaml").exists():
         p = CONFIG_DIR / f"{path}.yaml"
+    if p.resolve() in seen:
+        raise ValueError(f"training configuration {p} names itself as a base (through {[str(s) for s in seen]})")
     with open(p) as f:
-        return TrainConfig.from_dict(yaml.safe_load(f) or {})
+        d = yaml.safe_load(f) or {}
+    if not isinstance(d, dict):
+        raise ValueError(f"training configuration {p} must hold a mapping, got {type(d).__name__}")
+    base = d.pop("base", None)
+    return d if base is None else _merge(_read(base, seen + (p.resolve(),)), d)
+
+
+def _merge(base: dict, over: dict) -> dict:
+    out = dict(base)
+    for key, value in over.items():
+        out[key] = _merge(base[key], value) if isinstance(value, dict) and isinstance(base.get(key), dict) else value
+    return out

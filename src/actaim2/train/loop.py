@@ -37,6 +37,7 @@ from actaim2.models.selector_base import ModeSelector
 from actaim2.models.augment import augment
 from actaim2.models.gumbel import gumbel_temperature
 from actaim2.models.view_geometry import CubePlacement
+from actaim2.perception.ortho_views import CHANNELS
 from actaim2.train import checkpoint
 from actaim2.train.action_loss import action_loss, action_targets
 from actaim2.train.config import TrainConfig
@@ -82,8 +83,10 @@ class Trainer:
         selector = config.selector.to_dict()
         selector.update(z_dim=z_dim, obs={**selector["obs"], "views": n_views, "in_channels": channels})
         self.selector_config = type(config.selector).from_dict(selector)
+        channel_names = perception["fields"].get("channels", CHANNELS)  # a record without them: the renderer's full set
         self.predictor_config = PredictorConfig.from_json({**config.predictor, "embedding_dim": z_dim, "image_size": resolution,
-                                                           "views": n_views, "in_channels": channels})
+                                                           "views": n_views, "in_channels": channels,
+                                                           "channel_names": channel_names})
         torch.manual_seed(config.seed)
         self.selector: ModeSelector = build_selector(self.selector_config).to(self.device)
         self.predictor = ActionPredictor(self.predictor_config).to(self.device)
@@ -100,9 +103,15 @@ class Trainer:
 
     # ----------------------------------------------------------------- setup
     def _init_from(self, stem: str | Path) -> None:
-        """Start from another run's policy (e.g. the Goal-RVT predictor and its z statistics)."""
+        """Start from another run's policy (e.g. the Goal-RVT predictor and its z statistics).
+
+        A predictor that reads other inputs than the one there (an input ablation: other
+        ``inputs`` or ``view``) is not taken from it: it is trained afresh, beside the selector.
+        """
         policy = checkpoint.load_policy(stem, self.perception, self.device)
-        if policy.predictor is not None:
+        same_inputs = policy.predictor is not None and (policy.predictor.config.inputs, policy.predictor.config.view) \
+            == (self.predictor_config.inputs, self.predictor_config.view)
+        if same_inputs:
             checkpoint.load_state(self.predictor, policy.predictor.state_dict(), "predictor")
         if policy.selector is not None and type(policy.selector) is type(self.selector):
             checkpoint.load_state(self.selector, policy.selector.state_dict(), "selector")
@@ -112,7 +121,8 @@ class Trainer:
             self.selector.obs_encoder.channel_mean.copy_(policy.selector.obs_encoder.channel_mean)
             self.selector.obs_encoder.channel_std.copy_(policy.selector.obs_encoder.channel_std)
         self.lineage["init_from"] = {"path": str(stem), "weights_sha256": policy.meta.get("weights_sha256"),
-                                     "phases_done": policy.meta.get("lineage", {}).get("phases_done")}
+                                     "phases_done": policy.meta.get("lineage", {}).get("phases_done"),
+                                     "predictor_loaded": same_inputs}
 
     def _tensorboard(self):
         try:
@@ -284,7 +294,8 @@ class Trainer:
                 metrics.update({f"selector_{k}": v for k, v in sel_metrics.items()})
             views, keypose = self.augment(batch["views"], batch["keypose"], rng)
             out = predictor(views, eps_in, proprio_features(batch["gripper"], batch["phase"]))
-            action, parts = action_loss(out, action_targets(keypose, self.placement, views.shape[-1]))
+            action, parts = action_loss(out, action_targets(keypose, self.placement, views.shape[-1],
+                                                            view=self.predictor_config.view_index))
             metrics.update({"action": action.item(), **{k: float(v) for k, v in parts.items()}})
             return action, elbo, metrics
 

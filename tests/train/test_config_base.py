@@ -1,0 +1,31 @@
+"""Training YAMLs that start from another (``base:``): the ablation configs are the CPU default but for what they name."""
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from actaim2.train.config import load_config
+
+
+def test_ablation_configs_are_the_cpu_default_but_for_phases_and_predictor_inputs():
+    default = load_config("cpu_default")
+    for name, inputs, view in (("ablation_depth", ["depth", "uv"], "all"), ("ablation_single_view", ["rgb", "xyz", "depth", "uv"], "back")):
+        config = load_config(name)
+        assert config.phases == ("predictor",)
+        assert config.predictor == {**default.predictor, "inputs": inputs, "view": view}
+        assert dataclasses.replace(config, phases=default.phases, predictor=default.predictor) == default
+
+
+def test_a_base_merges_mappings_key_by_key_and_refuses_loops_and_unknown_keys(tmp_path):
+    (tmp_path / "a.yaml").write_text("base: cpu_default\nselector_phase: {epochs: 3}\nselector: {obs: {token_dim: 32}}\n")
+    config = load_config(tmp_path / "a.yaml")
+    default = load_config("cpu_default")
+    assert config.selector_phase == dataclasses.replace(default.selector_phase, epochs=3)
+    assert config.selector.obs == dataclasses.replace(default.selector.obs, token_dim=32)
+    (tmp_path / "loop.yaml").write_text(f"base: {tmp_path / 'loop.yaml'}\n")
+    with pytest.raises(ValueError, match="names itself as a base"):
+        load_config(tmp_path / "loop.yaml")
+    (tmp_path / "typo.yaml").write_text("base: cpu_default\npredictor_phase: {epoch: 3}\n")
+    with pytest.raises(ValueError, match="unknown predictor_phase keys"):
+        load_config(tmp_path / "typo.yaml")
