@@ -54,6 +54,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--allow-raycast", action="store_true", help="without a Vulkan device, render by ray casting instead of refusing")
     parser.add_argument("--figures", type=int, default=2, metavar="N",
                         help="embedding (PCA) and heatmap figures of ActAIM2 on the first N objects (0 = none)")
+    parser.add_argument("--videos", type=int, metavar="N",
+                        help="GIFs of one ActAIM2 episode per cluster on the first N objects, in <out>/videos "
+                             "(default: 2, none with --smoke)")
     parser.add_argument("--grounding", metavar="CATEGORY:INSTANCE",
                         help="run the interaction-mode grounding experiment on this object instead of the tables "
                              "(ActAIM2: bandit over clusters; --cvae / --vqvae: CEM over their embedding)")
@@ -199,11 +202,17 @@ def main(args: argparse.Namespace) -> int:
     header = _header(args, preset.name, described, render_path, len(objects), len(tasks), len(log.records), errors, seconds)
     records = [log.records[t.key] for t in tasks if t.key in log.records]
     text = report(records, methods, header)
-    if args.figures > 0 and "actaim2" in methods:
+    videos = preset.videos if args.videos is None else args.videos
+    if (args.figures > 0 or videos > 0) and "actaim2" in methods:
         from actaim2.eval.figures import write_figures
+        from actaim2.eval.video import video_table, write_videos
 
-        paths = write_figures(EvalWorker(setup), tasks, log.records, args.out / "figures", args.figures)
-        text += "\n## Figures\n\n" + "\n".join(f"![{p.stem}](figures/{p.name})" for p in paths) + "\n"
+        worker = EvalWorker(setup)  # re-executes ActAIM2 samples for the pictures
+        if args.figures > 0:
+            paths = write_figures(worker, tasks, log.records, args.out / "figures", args.figures)
+            text += "\n## Figures\n\n" + "\n".join(f"![{p.stem}](figures/{p.name})" for p in paths) + "\n"
+        if videos > 0:
+            text += video_table(write_videos(worker, tasks, log.records, args.out / "videos", videos), args.out)
     (args.out / "tables.md").write_text(text)
     print(f"{len(todo) - errors} samples run in {seconds:.0f} s ({errors} errors, retried by a rerun); tables: {args.out / 'tables.md'}")
     return 0 if errors == 0 else 1

@@ -17,14 +17,15 @@ class Preset:
     instances_per_category: int  # 0 = all (8 per category and split)
     categories: tuple[str, ...]  # () = all
     counts: SampleCounts
+    videos: int  # objects whose episodes are filmed (one per cluster) when --videos is not given
 
 
 PRESETS = {
     # one object per split, one sample per cluster: every code path, no statistics
-    "smoke": Preset("smoke", 1, ("storage_furniture", "box"), SampleCounts(per_cluster=1, baseline_per_group=1, per_object=2)),
+    "smoke": Preset("smoke", 1, ("storage_furniture", "box"), SampleCounts(per_cluster=1, baseline_per_group=1, per_object=2), 0),
     # one instance of every category per split (15 objects); ActAIM2's Mode SSR from 1 + 1 samples per cluster
-    "quick": Preset("quick", 1, (), SampleCounts(per_cluster=2, baseline_per_group=1, per_object=2)),
+    "quick": Preset("quick", 1, (), SampleCounts(per_cluster=2, baseline_per_group=1, per_object=2), 2),
     # every catalogue object (120): the issue's 4 samples per cluster, 8 per object for the other rows; 2 per
     # group (16 per object) for VQVAE-RVT and Data Collection, whose Mode SSR needs both halves of each group
-    "full": Preset("full", 0, (), SampleCounts(per_cluster=4, baseline_per_group=2, per_object=8)),
+    "full": Preset("full", 0, (), SampleCounts(per_cluster=4, baseline_per_group=2, per_object=8), 2),
 }

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
 
@@ -116,6 +116,9 @@ class SimEnv:
 
             self.randomiser = Randomiser(randomisation, self.sim, self.rig)
         self.randomisation_draw: dict | None = None  # the last reset's domain randomisation (lights, colours, noise)
+        # Called with this env after every step() call (physics inside follow_trajectory, grip and
+        # settle included): how a caller watches a motion it does not drive, e.g. an episode video.
+        self.step_observers: list[Callable[["SimEnv"], None]] = []
 
     # -- scene access (cameras, node) -------------------------------------------------------
     @property
@@ -201,6 +204,8 @@ class SimEnv:
 
     def step(self, n: int = 1) -> None:
         self.sim.step(n)
+        for observer in self.step_observers:
+            observer(self)
 
     def settle(self, min_time: float = SETTLE_MIN_TIME, max_time: float = SETTLE_MAX_TIME) -> float:
         """Step until every object DoF moves slower than ``SETTLE_SPEED`` (after at least
