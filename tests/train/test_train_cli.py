@@ -24,6 +24,7 @@ from actaim2.train.checkpoint import load_policy, perception_record
 
 TARGET = np.array([0.75, 0.0, 0.2])
 Z_DIM = 10
+ENCODER_DIGEST = "fedcba9876543210"  # the encoder E that made the synthetic task embeddings
 
 
 def _pictures(shift: float) -> dict[str, CameraImage]:
@@ -59,7 +60,8 @@ def dataset(tmp_path_factory):
             ids.append(writer.append(encode_trajectory(_trajectory(i, pictures)))["id"])
     write_labels(root, [{"id": t, "score": 1.0, "change": 1.0, "success": i != 5} for i, t in enumerate(ids)])  # one failure
     rng = np.random.default_rng(0)
-    np.savez(root / EMBEDDINGS_FILE, ids=np.array(ids), z=rng.normal(size=(len(ids), Z_DIM)).astype(np.float32))
+    np.savez(root / EMBEDDINGS_FILE, ids=np.array(ids), z=rng.normal(size=(len(ids), Z_DIM)).astype(np.float32),
+             encoder_digest=np.array(ENCODER_DIGEST))
     return root
 
 
@@ -85,6 +87,7 @@ def test_train_command_runs_all_phases_and_writes_loadable_checkpoints(dataset, 
     record = perception_record(load_perception_config("ring5"))
     policy = load_policy(out / "policy", record)
     assert policy.meta["lineage"]["phases_done"] == ["selector", "predictor", "joint"]
+    assert policy.meta["lineage"]["encoder_digest"] == ENCODER_DIGEST  # the E of the z it learned (finetune checks it)
     assert policy.predictor.config.image_size == 128 and policy.selector.config.z_dim == Z_DIM
     assert load_policy(out / "goal_rvt", record).predictor is not None
     history = [json.loads(line) for line in (out / "history.jsonl").read_text().splitlines()]

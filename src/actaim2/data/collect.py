@@ -65,6 +65,7 @@ from actaim2.sim.env import SimEnv
 from actaim2.sim.objects.catalog import object_id
 from actaim2.sim.objects.hulls import HullCache
 from actaim2.sim.objects.prepare import prepare_objects
+from actaim2.sim.randomisation import DomainRandomisation
 
 EXPLORE_SAMPLERS = ("random", "grasp")
 SAMPLER_CODES = {"random": 1, "grasp": 2, "gmm": 3}
@@ -100,6 +101,7 @@ class CollectConfig:
     show_progress: bool = True
     folders: tuple[FolderObject, ...] = ()  # real PartNet-Mobility folders (actaim2.data.real_objects)
     hull_cache: Path | None = None  # their convex decompositions (None: the default cache folder)
+    randomisation: DomainRandomisation | None = None  # domain randomisation of every reset (actaim2.sim.randomisation)
 
 
 @dataclass(frozen=True)
@@ -166,7 +168,7 @@ class TrajectoryCollector:
         self.config = config
         perception = load_perception_config(config.perception)
         self.env = SimEnv(config.robot, cameras=perception.rig, render_path=config.render_path or perception.render_path,
-                          hull_cache=config.hull_cache)
+                          hull_cache=config.hull_cache, randomisation=config.randomisation)
         robot = RobotModel(self.env.spec)
         checker = CollisionChecker(robot)
         self.planner = KeyposePlanner(robot, checker, IKSolver(robot, checker))
@@ -228,7 +230,8 @@ class TrajectoryCollector:
             id=task.tid, object_id=info.object_id, category=task.category, instance=task.instance, split=task.split,
             sampler=task.sampler, seed=task.seed, keyposes=keyposes, observations=observations, robot_joints=joints,
             object_state=ObjectState(list(info.dof_names), lower, upper, info.dof_initial, env.object_dof()),
-            info={"outcomes": outcomes, "reset_seed": info.seed, "sampler_cluster": task.gmm.cluster_of(task.index) if task.gmm else None},
+            info={"outcomes": outcomes, "reset_seed": info.seed, "sampler_cluster": task.gmm.cluster_of(task.index) if task.gmm else None,
+                  **({"randomisation": env.randomisation_draw} if env.randomiser is not None else {})},
         )
 
     def _reachable(self, action: ActionSequence, rng: np.random.Generator) -> bool:
@@ -443,6 +446,10 @@ def check_resumable(info: dict, config: CollectConfig) -> None:
         if key in info and info[key] != value:
             raise ValueError(f"{config.out} was collected with {key} {info[key]!r}, not {value!r}: "
                              f"resume it with --{key} {info[key]}, or collect into another --out")
+    randomisation = config.randomisation.to_dict() if config.randomisation is not None else None
+    if info.get("domain_randomisation") != randomisation:  # absent: collected without
+        raise ValueError(f"{config.out} was collected with domain randomisation {info.get('domain_randomisation')}, "
+                         f"not {randomisation}: resume it with the same --domain-randomisation, or collect into another --out")
 
 
 def collect(config: CollectConfig) -> dict:
@@ -467,6 +474,8 @@ def collect(config: CollectConfig) -> dict:
             "objects": [list(o) for o in config.objects], "folders": [[f.folder, f.split] for f in config.folders],
             "per_object": config.per_object,
             "other_splits_share": config.other_splits_share, "dof_fraction": config.dof_fraction}
+    if config.randomisation is not None:  # each trajectory's draw is in its meta.json info
+        info["domain_randomisation"] = config.randomisation.to_dict()
     if config.folders:  # their hulls before any worker loads them (a cached mesh costs a hash)
         prepare_objects([Path(f.folder) for f in config.folders], HullCache(config.hull_cache), max(1, config.workers))
     report: dict = {"stages": []}

@@ -5,6 +5,7 @@ Examples:
     actaim2 collect --out data/small --instances-per-category 1 --random 10 --grasp 10 --gmm 5
     actaim2 collect --out data/ds --vgg19-weights vgg19-dcbb9e9d.pth         # E = a user's VGG-19
     actaim2 collect --out data/pm --objects ~/partnet-mobility --object-splits splits.yaml   # real folders
+    actaim2 collect --out data/azure --robot kinova_j2s6s200 --perception azure_kinect --domain-randomisation default
 
 Interrupt it at any time; the same command resumes where it stopped.
 """
@@ -48,6 +49,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--object-splits", type=Path, help="YAML 'folder name: split' for --objects; other folders split "
                                                            "by category (actaim2.data.real_objects)")
     parser.add_argument("--hull-cache", type=Path, help="convex decompositions of --objects (default ~/.cache/actaim2/hulls)")
+    parser.add_argument("--domain-randomisation", metavar="YAML|default",
+                        help="randomise lighting, colours, placement, depth noise and extrinsics per reset "
+                             "(actaim2.sim.randomisation; 'default': its bundled domain_randomisation.yaml)")
 
 
 def _objects(args: argparse.Namespace) -> list[tuple[str, int]]:
@@ -79,14 +83,16 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.data.encoder import ImageEncoder
     from actaim2.data.real_objects import folder_objects, read_object_splits
     from actaim2.data.splits import split_of
+    from actaim2.sim.randomisation import load_randomisation
 
     try:
+        randomisation = load_randomisation(args.domain_randomisation) if args.domain_randomisation else None
         objects = _objects(args)
         for category, instance in objects:
             split_of(category, instance)  # only catalogued objects: their split must be known
         splits = read_object_splits(args.object_splits) if args.object_splits is not None else None
         folders = folder_objects(args.objects, splits) if args.objects is not None else []
-    except ValueError as exc:
+    except (ValueError, FileNotFoundError) as exc:
         print(f"actaim2 collect: {exc}", file=sys.stderr)
         return 2
     if not objects and not folders:
@@ -109,7 +115,7 @@ def main(args: argparse.Namespace) -> int:
         other_splits_share=args.other_splits_share, workers=args.workers, seed=args.seed, robot=args.robot, perception=args.perception, render_path=args.render_path or "",
         allow_raycast=args.allow_raycast, rounds=args.rounds,
         encoder=encoder, encoder_steps=args.encoder_steps, show_progress=not args.no_progress,
-        folders=tuple(folders), hull_cache=args.hull_cache,
+        folders=tuple(folders), hull_cache=args.hull_cache, randomisation=randomisation,
     )
     try:
         report = collect(config)

@@ -45,7 +45,18 @@ MIN_CALIBRATION = 5  # moved parts of each outcome the calibration split needs; 
 
 
 def encoder_digest(path: Path) -> str:
+    """16 hex digits of an encoder file: E's identity (its spec, so its input size, and its weights)."""
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
+
+
+def embeddings_encoder_digest(root: str | Path) -> str | None:
+    """The digest of the encoder E that made a dataset's task embeddings (``embeddings.npz``), or None
+    when it has none yet: what checkpoints record and fine-tuning compares."""
+    path = Path(root) / EMBEDDINGS_FILE
+    if not path.exists():
+        return None
+    with np.load(path) as f:
+        return str(f["encoder_digest"]) if "encoder_digest" in f else None
 
 
 def fit_default_encoder(reader: DatasetReader, max_trajectories: int = 150, steps: int = 800, seed: int = 0,
@@ -258,6 +269,7 @@ def label_dataset(root: str | Path, encoder_path: str | Path, calibration_split:
         "alternatives": alternatives,
         "encoder": str(encoder_path),
         "encoder_kind": encoder.spec.kind,
+        "encoder_digest": encoder_digest(encoder_path),
     }
     (Path(root) / REPORT_FILE).write_text(json.dumps(report, indent=2))
     return report

@@ -13,7 +13,8 @@ so ``actaim2 train`` / ``actaim2 finetune`` read it as they read simulated data:
 * O_init and O_final: the first and last cloud sets of the episode with the robot removed by the
   self-filter posed at each cloud's stamp (a real arm cannot be hidden as the simulator hides it:
   its pixels become "no return"), and the task embedding z = E(O_init) - E(O_final) with the
-  encoder E given (the pretraining data's: its digest is recorded in dataset.json and embeddings.npz);
+  encoder E given (the pretraining data's: its digest is recorded in dataset.json and embeddings.npz;
+  given the policy checkpoint to fine-tune, a different E than the one it was trained with is refused);
 * labels: the operator's verdict (END's success) is the label training selects on, the mode
   label (``/interaction_mode``) is kept in the index (``mode_label``) and the trajectory's info.
 
@@ -55,6 +56,28 @@ ROBOT_HIDDEN = ("init", "final")
 
 class EpisodeProblem(ValueError):
     """One episode cannot be converted; the message says why."""
+
+
+class EncoderMismatchError(ValueError):
+    """The encoder E given is not the one the policy to fine-tune was trained with."""
+
+
+def check_checkpoint_encoder(checkpoint_stem: str | Path, encoder_path: str | Path, digest: str) -> None:
+    """The checkpoint's selector learned task embeddings of one encoder E (``lineage.encoder_digest``,
+    recorded by ``actaim2 train`` and ``actaim2 finetune``); demonstrations embedded by another E
+    would ask it about a space it never saw. Raises naming both digests, or when none is recorded."""
+    from actaim2.train import checkpoint
+
+    _, meta = checkpoint.read(checkpoint_stem)
+    recorded = (meta.get("lineage") or {}).get("encoder_digest")
+    if recorded is None:
+        raise EncoderMismatchError(f"checkpoint {checkpoint_stem} records no encoder digest (trained before checkpoints "
+                                   f"recorded E, or on data without task embeddings): convert without --checkpoint and "
+                                   f"fine-tune with --pretraining-data, which checks E against the training data")
+    if recorded != digest:
+        raise EncoderMismatchError(f"encoder {encoder_path} has digest {digest}, but checkpoint {checkpoint_stem} was "
+                                   f"trained on task embeddings of encoder {recorded}: convert with its pretraining "
+                                   f"data's encoder (<dataset>/encoder.pt, the one whose digest is {recorded})")
 
 
 @dataclass
@@ -156,20 +179,26 @@ def _demonstration(trajectory: Trajectory) -> EncodedTrajectory:
 
 
 def bags_to_dataset(bags: Sequence[str | Path], out: str | Path, config: PerceptionConfig, robot: str,
-                    encoder_path: str | Path, report: Callable[[str], None] = print) -> dict:
-    """Convert every episode of ``bags`` into a new dataset at ``out``; returns the conversion report."""
+                    encoder_path: str | Path, report: Callable[[str], None] = print,
+                    checkpoint: str | Path | None = None) -> dict:
+    """Convert every episode of ``bags`` into a new dataset at ``out``; returns the conversion report.
+    With ``checkpoint`` (the policy to fine-tune), an encoder other than its E is refused first."""
     from actaim2.robots import load_robot_spec
 
     out = Path(out)
     if (out / "dataset.json").exists():
         raise FileExistsError(f"{out} already holds a dataset: convert into a new folder")
-    encoder = ImageEncoder.load(encoder_path)
     digest = encoder_digest(Path(encoder_path))
+    if checkpoint is not None:
+        check_checkpoint_encoder(checkpoint, encoder_path, digest)
+    encoder = ImageEncoder.load(encoder_path)
     converter = EpisodeConverter(RobotSelfFilter(load_robot_spec(robot), config.self_filter_margin), encoder)
     topics = rig_topics(config)
     info = {"rig": config.rig, "perception": capture_part(config), "robot": robot, "source": "bags",
             "bags": [str(b) for b in bags], "cloud_topics": topics,
-            "encoder": {"path": str(encoder_path), "digest": digest, "kind": encoder.spec.kind}}
+            "encoder": {"path": str(encoder_path), "digest": digest, "kind": encoder.spec.kind,
+                        "input_size": [encoder.spec.height, encoder.spec.width],
+                        "checked_against": None if checkpoint is None else str(checkpoint)}}
     reports: list[BagReport] = []
     z: dict[str, np.ndarray] = {}
     success: dict[str, bool] = {}

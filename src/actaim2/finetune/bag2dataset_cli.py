@@ -3,9 +3,11 @@
 Examples:
     actaim2 bag2dataset bags/teleop/episode_* --out data/teleop --encoder data/sim/encoder.pt
     actaim2 bag2dataset my_bag --out data/real --robot kinova_j2s6s200 --perception azure_kinect
+    actaim2 bag2dataset bags/teleop/episode_* --out data/teleop --encoder data/azure/encoder.pt --checkpoint runs/azure/policy
 
 ``--encoder`` is the encoder E of the pretraining data (``<dataset>/encoder.pt``): the task
-embeddings of the demonstrations must live in the space the pretrained selector learned. A bag
+embeddings of the demonstrations must live in the space the pretrained selector learned;
+``--checkpoint`` (the policy to fine-tune) refuses another E, naming both digests. A bag
 or an episode that cannot be converted is reported and skipped; the command fails only when
 nothing could be converted. What happened to each bag is in ``<out>/bag2dataset.json``.
 """
@@ -23,16 +25,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--perception", default="azure_kinect",
                         help="perception configuration (rig name or YAML) the policy is served with: its rig names the cloud topics")
     parser.add_argument("--robot", default="kinova_j2s6s200", help="the robot in the bags (preset or YAML): its self-filter hides it")
+    parser.add_argument("--checkpoint", type=Path,
+                        help="the policy to fine-tune (stem): refuse --encoder unless it is the E that policy was trained with")
 
 
 def main(args: argparse.Namespace) -> int:
     from actaim2.finetune.bag2dataset import bags_to_dataset
     from actaim2.perception.config import load_perception_config
+    from actaim2.train.checkpoint import CheckpointError
 
     try:
         config = load_perception_config(args.perception)
-        summary = bags_to_dataset(args.bags, args.out, config, args.robot, args.encoder)
-    except (FileNotFoundError, FileExistsError, ValueError) as exc:
+        summary = bags_to_dataset(args.bags, args.out, config, args.robot, args.encoder, checkpoint=args.checkpoint)
+    except (FileNotFoundError, FileExistsError, ValueError, CheckpointError) as exc:
         print(f"actaim2 bag2dataset: {exc}")
         return 2
     fits = summary["intrinsics_residual_px"]

@@ -35,7 +35,7 @@ from typing import Sequence
 import numpy as np
 import torch
 
-from actaim2.data.labelling import EMBEDDINGS_FILE
+from actaim2.data.labelling import embeddings_encoder_digest
 from actaim2.data.splits import TRAIN
 from actaim2.data.storage import DatasetReader
 from actaim2.finetune.clusters import assign_clusters, cluster_table
@@ -70,23 +70,15 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def _encoder_digest(root: Path) -> str | None:
-    path = root / EMBEDDINGS_FILE
-    if not path.exists():
-        return None
-    with np.load(path) as f:
-        return str(f["encoder_digest"]) if "encoder_digest" in f else None
-
-
 def check_encoder(meta: dict, dataset: Path, pretraining: Path | None) -> dict:
     """Whether the dataset's task embeddings come from the parent's encoder E; FinetuneError if not."""
-    ours = _encoder_digest(dataset)
+    ours = embeddings_encoder_digest(dataset)
     recorded = (meta.get("lineage") or {}).get("encoder_digest")
     if recorded is None and pretraining is not None:
         if dataset_digest(pretraining) != meta.get("dataset_digest"):
             raise FinetuneError(f"{pretraining} is not the data the parent checkpoint was trained on (its digest "
                                 f"{dataset_digest(pretraining)}, the checkpoint's {meta.get('dataset_digest')})")
-        recorded = _encoder_digest(pretraining)
+        recorded = embeddings_encoder_digest(pretraining)
     if recorded is None:
         return {"encoder_digest": ours, "checked": False,
                 "note": "the parent records no encoder digest and no pretraining dataset was given: E not checked"}

@@ -37,6 +37,7 @@ def main(args: argparse.Namespace) -> int:
 
     import torch.distributed as dist
 
+    from actaim2.data.labelling import embeddings_encoder_digest
     from actaim2.data.splits import TRAIN
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.perception.config import load_perception_config
@@ -69,6 +70,10 @@ def main(args: argparse.Namespace) -> int:
                       args.out, ctx, args.init_from, show_progress=not args.no_progress)
     if args.resume and not trainer.resume():
         print(f"no {args.out}/train_state to resume from: starting afresh")
+    # The encoder E of the task embeddings the selector learns, recorded in the checkpoint: demonstrations
+    # for fine-tuning must be embedded by the same E (bag2dataset --checkpoint and finetune check it).
+    # Set after a resume too: the state's dataset digest, which covers embeddings.npz, is this dataset's.
+    trainer.lineage["encoder_digest"] = embeddings_encoder_digest(args.data)
     results = trainer.run()
     if ctx.is_main:
         print(json.dumps({phase: {"steps": r.steps, "seconds": round(r.seconds, 1), "last": r.last_metrics}
