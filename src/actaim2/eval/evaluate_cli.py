@@ -146,7 +146,7 @@ def main(args: argparse.Namespace) -> int:
     try:
         stems, methods = _methods(args)
         described = {m: describe(stems[m]) for m in methods if m in stems}
-        for m in set(described) & set(ABLATIONS):
+        for m in (m for m in ABLATIONS if m in described):
             problem = ablation_problem(m, described[m]["predictor_inputs"], described[m]["predictor_view"])
             if problem:
                 raise ValueError(f"{m}: checkpoint {stems[m]}: {problem}")
