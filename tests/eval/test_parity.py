@@ -34,6 +34,8 @@ def test_parity_runs_both_paths_and_reports_both_outcomes(tmp_path) -> None:
         assert library["cluster"] == ros["cluster"] == row["cluster"]  # the same mode asked both ways
         assert ros["object_id"] == row["object"]  # the same object loaded both ways
         assert library["success"] == (library["largest_change"] > 0.3) and ros["success"] == (ros["largest_change"] > 0.3)
+        # The tiny checkpoint's keyposes are reachable on both objects: each path executed the whole episode.
+        assert library["phases_executed"] == ros["phases_executed"] == 4, row
     agree = sum(r["library"]["success"] == r["ros"]["success"] for r in rows)
     report = (out / "parity.md").read_text()
     assert f"**Agreement: {agree} / 2**" in report

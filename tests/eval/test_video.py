@@ -16,7 +16,7 @@ from actaim2.sim.render_path import vulkan_device_error
 from tiny_checkpoint import CLUSTERS, make_checkpoint
 
 
-@pytest.mark.timeout(300)
+@pytest.mark.timeout(900)
 def test_filmed_episodes_are_animated_gifs_of_the_unchanged_episode(tmp_path) -> None:
     stem = make_checkpoint(tmp_path / "policy")
     perception = perception_of(stem)

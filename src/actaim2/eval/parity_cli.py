@@ -20,6 +20,12 @@ import sys
 import time
 from pathlib import Path
 
+# control_node's waits, widened for parity: on a loaded machine sim_node falls behind real time and publishes
+# /joint_states late, and the node's defaults (a trajectory gets duration x 3 + 5 s; /joint_states older than
+# 1 s count as missing) then fail an episode on the machine's load: a "disagreement" that says nothing about
+# the two paths. The arm stands still between phases, so joint states seconds old are still where it is.
+CONTROL_WAITS = {"timeout_margin": 120.0, "joint_states_timeout": 10.0}
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--checkpoint", type=Path, required=True, help="ActAIM2 policy checkpoint (stem)")
@@ -77,7 +83,7 @@ def main(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     ros = []
     graph.start({"sim_node": {"render_path": render_path}, "fusion_node": fusion, "policy_node": policy,
-                 "control_node": {"use_cloud": True}})
+                 "control_node": {"use_cloud": True, **CONTROL_WAITS}})
     try:
         for i, task in enumerate(tasks):
             ros.append(graph.episode(i, task.obj.category, task.obj.instance, task.reset_seed, task.cluster,
