@@ -47,12 +47,16 @@ def spin(make_node: Callable[[], Node], name: str, args: list[str] | None = None
 
     apply_ros_defaults()
     rclpy.init(args=args)
-    node = _start(make_node, name)
+    try:
+        node = _start(make_node, name)
+    except KeyboardInterrupt:  # Ctrl-C while the node was being built: the same end, without a traceback
+        rclpy.try_shutdown()
+        return 0
     if node is None:
         return 1
     executor = _executor(threads)
-    executor.add_node(node)
     try:
+        executor.add_node(node)
         executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
