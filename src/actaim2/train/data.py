@@ -112,7 +112,7 @@ def cache_folder(root: str | Path, splits: list[str], perception_digest: str) ->
 
 
 def build_cache(root: str | Path, perception, splits: list[str], perception_digest: str,
-                show_progress: bool = True) -> Path:
+                show_progress: bool = True, allow_held_out: bool = False) -> Path:
     """Render and store the views of the visually successful trajectories of ``splits``; returns the cache folder.
 
     ``perception``: an :class:`actaim2.perception.pipeline.Perception` (with the robot
@@ -126,8 +126,8 @@ def build_cache(root: str | Path, perception, splits: list[str], perception_dige
     if (folder / "done.json").exists():
         return folder
     folder.mkdir(parents=True, exist_ok=True)
-    modes = ModeDataset(root, splits=splits, success="visual", perception=perception)
-    keys = KeyframeDataset(root, splits=splits, success="visual", perception=perception)
+    modes = ModeDataset(root, splits=splits, success="visual", perception=perception, allow_held_out=allow_held_out)
+    keys = KeyframeDataset(root, splits=splits, success="visual", perception=perception, allow_held_out=allow_held_out)
     missing = [e["id"] for e in modes.entries if e["id"] not in modes.embeddings]
     if missing:
         raise ValueError(f"{root} has no task embedding for {len(missing)} trajectories (e.g. {missing[:3]}): run the labelling step")
@@ -158,7 +158,8 @@ def build_cache(root: str | Path, perception, splits: list[str], perception_dige
     return folder
 
 
-def ensure_cache(root: str | Path, perception_config, splits: list[str], show_progress: bool = True) -> Path:
+def ensure_cache(root: str | Path, perception_config, splits: list[str], show_progress: bool = True,
+                 allow_held_out: bool = False) -> Path:
     """Render (or reuse) the cached views of ``splits`` under a perception configuration; the cache folder.
 
     The robot self-filter, when the configuration asks for robot-hidden views, is the dataset's
@@ -174,7 +175,7 @@ def ensure_cache(root: str | Path, perception_config, splits: list[str], show_pr
     self_filter = RobotSelfFilter(load_robot_spec(robot), perception_config.self_filter_margin) \
         if perception_config.remove_robot_views else None
     return build_cache(root, Perception(perception_config, self_filter), splits,
-                       perception_record(perception_config)["digest"], show_progress)
+                       perception_record(perception_config)["digest"], show_progress, allow_held_out)
 
 
 def open_cache(root: str | Path, perception_config, splits: list[str]) -> TrainingData:

@@ -46,7 +46,7 @@ def main(args: argparse.Namespace) -> int:
     if policy.selector is None or policy.predictor is None:
         print(f"actaim2 validate: {stem} must hold both a selector and a predictor")
         return 1
-    ensure_cache(args.data, perception, [args.split], not args.no_progress)
+    ensure_cache(args.data, perception, [args.split], not args.no_progress, allow_held_out=True)  # measuring, not training
     data = open_cache(args.data, perception, [args.split])
     actions = action_figures(policy.selector, policy.predictor, data, CubePlacement.of(perception), device)
     selector = selector_figures(policy.selector, data, device)
