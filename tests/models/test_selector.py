@@ -106,3 +106,17 @@ def test_sampling_interface(kind):
     assert not torch.allclose(chosen.eps, other.eps)  # the cluster changes eps
     with pytest.raises(ValueError, match="cluster must be in 0..7"):
         model.sample(views, 8)
+
+
+def test_z_standardisation_does_not_blow_up_dimensions_constant_in_training():
+    """A dead encoder feature (constant on the training set) stays bounded when an unseen object moves it."""
+    torch.manual_seed(0)
+    model = build_selector(SelectorConfig(kind="cgmvae", **SMALL))
+    z = torch.randn(64, 12) * torch.linspace(0.5, 2.0, 12)
+    z[:, 0] = 0.25  # constant in training
+    model.fit_statistics(torch.rand(64, 5, 8, 16, 16), z)
+    spread = z.std(dim=0)
+    torch.testing.assert_close(model.z_std[6:], spread[6:])  # above the median: standardised as usual
+    unseen = torch.zeros(1, 12)
+    unseen[0, 0] = 1.25  # the dead feature moves by 1.0 on an unseen object
+    assert 0.0 < model.standardise(unseen)[0, 0] <= 1.0 / float(spread.median()) + 1e-4  # was 1e6 with a 1e-6 floor

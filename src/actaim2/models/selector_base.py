@@ -93,12 +93,24 @@ class ModeSelector(nn.Module, abc.ABC):
 
     @torch.no_grad()
     def fit_statistics(self, views: torch.Tensor, z: torch.Tensor) -> None:
-        """Input standardisation of the views and of z, from the training set (before training)."""
+        """Input standardisation of the views and of z, from the training set (before training).
+
+        Each dimension of z is divided by its spread, floored at the median spread over the
+        dimensions. Without the floor, dimensions that are (nearly) constant on the training set
+        (dead encoder features: 239 of 1920 had a spread under 1e-4 on data/v2) were blown up by
+        10^3-10^6 wherever an unseen object moved them, and swamped both the selector's
+        reconstruction loss and the predictor's input. Below the median a dimension is scaled
+        down instead: it carries little of the variation that distinguishes outcomes.
+        """
         if z.shape[-1] != self.config.z_dim:
             raise ValueError(f"z has {z.shape[-1]} dimensions, the selector expects {self.config.z_dim}")
         self.obs_encoder.fit_input_statistics(views)
         self.z_mean.copy_(z.float().mean(dim=0))
-        self.z_std.copy_(z.float().std(dim=0).clamp_min(1e-6) if len(z) > 1 else torch.ones_like(self.z_std))
+        if len(z) > 1:
+            spread = z.float().std(dim=0)
+            self.z_std.copy_(spread.clamp_min(float(spread.median().clamp_min(1e-6))))
+        else:
+            self.z_std.fill_(1.0)
 
     def standardise(self, z: torch.Tensor) -> torch.Tensor:
         """Raw task embedding z -> eps space."""
