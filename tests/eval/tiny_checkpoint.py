@@ -59,7 +59,12 @@ def make_checkpoint(out: Path, kind: str = "cgmvae", trajectories: int = 8, seed
     keyposes = np.repeat(TARGETS[None], trajectories, axis=0)
     gripper = np.repeat(np.array([[False, False, False, True]]), trajectories, axis=0)
     valid = placement.contains(torch.from_numpy(keyposes[..., :3])).numpy()
-    z = rng.normal(size=(trajectories, 5 * ImageEncoder.autoencoder().dim_per_camera)).astype(np.float32)
+    z = rng.normal(size=(trajectories, 5 * ImageEncoder.autoencoder().dim_per_camera))
+    # Unit spread in every dimension: the selector's standardisation (spreads floored at their
+    # median) then leaves z as drawn, and the barely trained predictor sees the eps scale it was
+    # trained on (with spreads of 0.3-2 from 8 draws, the floor shrank half the dimensions and
+    # the 40-step predictor's INIT left the arm's reach).
+    z = ((z - z.mean(axis=0)) / z.std(axis=0, ddof=1)).astype(np.float32)
     data = TrainingData(views, np.repeat(views[:, None], 4, axis=1), keyposes, gripper, valid, z,
                         [f"t{i:03d}" for i in range(trajectories)])
     torch.manual_seed(seed)
