@@ -20,6 +20,12 @@ rounded angles of both Euler solutions (alpha, beta, gamma) and (alpha + 180, 18
 gamma + 180). In the (alpha, gamma) plane the bin centres form a rhombic lattice under that
 metric, whose covering radius is at most 5 / sqrt(2) = 3.54 deg for every beta; with beta's
 2.5 deg the error stays <= sqrt(3.54^2 + 2.5^2) = 4.33 deg everywhere, gimbal region included.
+
+Gripper symmetry. A two-finger hand turned half a turn about its approach axis (tcp z) makes the
+same grasp, so a keypose's rotation R and R Rz(180) are one action. The samplers draw both (the
+random sampler's R0 is uniform), which would split the rotation targets between two classes
+for one behaviour; :func:`canonical_grasp` picks one of the pair for the training targets and
+:func:`grasp_geodesic_deg` measures errors up to the symmetry.
 """
 from __future__ import annotations
 
@@ -32,6 +38,10 @@ from scipy.spatial.transform import Rotation
 EULER_SEQUENCE = "xyz"  # SciPy, lower case = extrinsic: R = Rz(gamma) Ry(beta) Rx(alpha)
 ROTATION_BINS = 72
 _NEIGHBOURS = np.array(list(itertools.product((-1, 0, 1), repeat=3)))  # (27, 3)
+HALF_TURN = Rotation.from_euler("z", 180.0, degrees=True)  # about the tcp's approach axis: the hand's symmetry
+# The canonical one of R and R Rz(180) has its closing axis (tcp y) along this side. A generic
+# direction: the tie (y perpendicular to it) then falls on no axis-aligned grasp, where samples crowd.
+SYMMETRY_REFERENCE = np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0)
 
 
 def bin_width(bins: int = ROTATION_BINS) -> float:
@@ -95,6 +105,22 @@ def quat_to_bins(quat_xyzw: np.ndarray, n_bins: int = ROTATION_BINS) -> np.ndarr
     repeated = Rotation.from_quat(np.repeat(rotations.as_quat(), candidates.shape[1], axis=0))
     error = (decoded.inv() * repeated).magnitude().reshape(n, -1)
     return candidates[np.arange(n), error.argmin(axis=1)]
+
+
+def canonical_grasp(quat_xyzw: np.ndarray) -> np.ndarray:
+    """(N, 4) quaternions -> the same grasps, each as the one of R and R Rz(180) whose tcp y axis
+    has a non-negative component along SYMMETRY_REFERENCE (w >= 0)."""
+    rotations = Rotation.from_quat(np.asarray(quat_xyzw, dtype=np.float64).reshape(-1, 4))
+    turned = rotations * HALF_TURN
+    keep = rotations.as_matrix()[:, :, 1] @ SYMMETRY_REFERENCE >= 0.0
+    q = np.where(keep[:, None], rotations.as_quat(), turned.as_quat())
+    return np.where(q[:, 3:] < 0, -q, q)
+
+
+def grasp_geodesic_deg(q_a: np.ndarray, q_b: np.ndarray) -> np.ndarray:
+    """(N,) angle in degrees between two grasps, up to the hand's half-turn symmetry (<= 180)."""
+    b = Rotation.from_quat(np.asarray(q_b, dtype=np.float64).reshape(-1, 4))
+    return np.minimum(geodesic_deg(q_a, b.as_quat()), geodesic_deg(q_a, (b * HALF_TURN).as_quat()))
 
 
 def geodesic_deg(q_a: np.ndarray, q_b: np.ndarray) -> np.ndarray:

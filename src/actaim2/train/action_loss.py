@@ -6,7 +6,9 @@
   (:mod:`actaim2.models.view_geometry`). Its minimum is the targets' entropy, not 0. A
   single-view predictor is scored on its one view, plus the cross-entropy of its depth cells
   against their Gaussian soft target (together: the CE of the point's fine cell, factored).
-* CE(R): cross-entropy of each Euler angle's 72 bins, summed over the three angles (RVT).
+* CE(R): cross-entropy of each Euler angle's 72 bins, summed over the three angles (RVT). The
+  target is the keypose's rotation or its half turn about the approach axis, whichever
+  :func:`~actaim2.models.rotation_bins.canonical_grasp` picks (one class per grasp).
 * CE(q): cross-entropy of the gripper state (0 open, 1 closed).
 
 The parts are returned separately for logging.
@@ -19,7 +21,7 @@ import torch
 import torch.nn.functional as F
 
 from actaim2.models.predictor import PredictorOutput
-from actaim2.models.rotation_bins import ROTATION_BINS, quat_to_bins
+from actaim2.models.rotation_bins import ROTATION_BINS, canonical_grasp, quat_to_bins
 from actaim2.models.view_geometry import HEATMAP_SIGMA, CubePlacement, depth_targets, heatmap_targets
 
 
@@ -49,7 +51,7 @@ def action_targets(
     if bool(outside.any()):
         rows = outside.nonzero().flatten().tolist()
         raise ValueError(f"keyposes {rows} lie outside the cube {placement}: {position[outside].tolist()}")
-    bins = quat_to_bins(keyposes[:, 3:7].detach().cpu().double().numpy(), n_bins)
+    bins = quat_to_bins(canonical_grasp(keyposes[:, 3:7].detach().cpu().double().numpy()), n_bins)
     cube = placement.to_cube(position)
     heatmaps = heatmap_targets(cube, resolution, sigma)
     return ActionTargets(

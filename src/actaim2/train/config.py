@@ -59,6 +59,7 @@ class TrainConfig:
     elbo: ElboWeights = field(default_factory=ElboWeights)
     joint_elbo_weight: float = 1.0  # L_total = L_action + w L_ELBO (paper: 1; authors' code: 0.6)
     augment: bool = True  # RVT scene augmentation of the predictor's batches
+    eps_noise: float = 0.0  # std of Gaussian noise on the predictor's eps while training (standardised units)
     validation_fraction: float = 0.1  # trajectories of the training split held out for curves
     checkpoint_minutes: float = 10.0  # wall time between resumable checkpoints
     log_every: int = 20  # steps between TensorBoard scalars / progress-bar updates

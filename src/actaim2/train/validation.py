@@ -9,7 +9,8 @@ Action predictor, per keyframe with a target inside the cube, fed two embeddings
   * ``reconstructed``: the selector's reconstruction of the trajectory's z through the posterior
     means (what the joint phase trains the predictor on, sg[eps_hat]);
   * ``true``: the standardised true z (the Goal-RVT input).
-Figures: translation error (median and 90th percentile, mm), rotation error (geodesic, deg),
+Figures: translation error (median and 90th percentile, mm), rotation error (geodesic, deg, up
+to the hand's half-turn symmetry about its approach axis),
 gripper accuracy.
 
 Mode selector: reconstruction error (mean squared error per dimension of eps, standardised
@@ -26,7 +27,7 @@ import numpy as np
 import torch
 
 from actaim2.models.predictor import ActionPredictor, decode_action, proprio_features
-from actaim2.models.rotation_bins import geodesic_deg
+from actaim2.models.rotation_bins import grasp_geodesic_deg
 from actaim2.models.selector_base import ModeSelector
 from actaim2.models.view_geometry import CubePlacement
 from actaim2.train.data import TrainingData
@@ -67,7 +68,7 @@ def action_figures(selector: ModeSelector, predictor: ActionPredictor, data: Tra
         for kind in EMBEDDINGS:
             action = decode_action(predictor(batch["views"], eps[kind], proprio), placement)
             errors[kind]["t"].append(1000.0 * np.linalg.norm(action.position.cpu().numpy() - truth[:, :3], axis=1))
-            errors[kind]["r"].append(geodesic_deg(action.quat_xyzw.cpu().double().numpy(), truth[:, 3:7].astype(np.float64)))
+            errors[kind]["r"].append(grasp_geodesic_deg(action.quat_xyzw.cpu().double().numpy(), truth[:, 3:7].astype(np.float64)))
             errors[kind]["g"].append(action.gripper_closed.cpu().numpy() == (truth[:, 7] > 0.5))
     out = {}
     for kind, e in errors.items():
