@@ -1,11 +1,13 @@
-"""Rotation bins: the geodesic error bound everywhere (gimbal region included), sign invariance, conventions."""
+"""Rotation bins: the geodesic error bound everywhere (gimbal region included), sign invariance, conventions,
+the hand's half-turn symmetry."""
 from __future__ import annotations
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from actaim2.geometry import xyzw_to_wxyz
-from actaim2.models.rotation_bins import ROTATION_BINS, bins_to_euler, bins_to_quat, geodesic_deg, quat_to_bins
+from actaim2.models.rotation_bins import (HALF_TURN, ROTATION_BINS, SYMMETRY_REFERENCE, bins_to_euler, bins_to_quat,
+                                         canonical_grasp, geodesic_deg, grasp_geodesic_deg, quat_to_bins)
 
 BOUND_DEG = 4.4  # sqrt(3) * 2.5 deg = 4.33 deg, the covering radius of 5-degree Euler bins
 
@@ -57,3 +59,21 @@ def test_decoded_quaternions_are_unit_with_nonnegative_w():
     q = bins_to_quat(np.random.default_rng(3).integers(0, ROTATION_BINS, (500, 3)))
     np.testing.assert_allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-12)
     assert (q[:, 3] >= 0).all()
+
+
+def test_canonical_grasp_maps_both_half_turns_of_a_grasp_to_one_rotation():
+    rotations = Rotation.random(500, random_state=3)
+    turned = rotations * HALF_TURN
+    a, b = canonical_grasp(rotations.as_quat()), canonical_grasp(turned.as_quat())
+    assert np.allclose(a, b, atol=1e-9)
+    # it is one of the two, with the closing axis on the reference's side
+    assert np.all((geodesic_deg(a, rotations.as_quat()) < 1e-6) | (geodesic_deg(a, turned.as_quat()) < 1e-6))
+    assert np.all(Rotation.from_quat(a).as_matrix()[:, :, 1] @ SYMMETRY_REFERENCE >= 0.0)
+    assert np.all(a[:, 3] >= 0.0)
+
+
+def test_grasp_geodesic_ignores_the_half_turn_and_nothing_else():
+    rotations = Rotation.random(200, random_state=4)
+    assert np.allclose(grasp_geodesic_deg(rotations.as_quat(), (rotations * HALF_TURN).as_quat()), 0.0, atol=1e-6)
+    tilted = rotations * Rotation.from_euler("x", 30.0, degrees=True)  # about the closing-normal axis: a real change
+    assert np.allclose(grasp_geodesic_deg(rotations.as_quat(), tilted.as_quat()), 30.0, atol=1e-6)
