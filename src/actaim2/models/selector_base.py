@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import torch
 from torch import nn
 
+from actaim2.config_fields import check_fields
 from actaim2.models.eps_decoder import EpsDecoder
 from actaim2.models.obs_encoder import ObsEncoder, ObsEncoderConfig
 
@@ -52,19 +53,14 @@ class SelectorConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> "SelectorConfig":
+        check_fields(cls, d, "selector")
         d = dict(d)
-        obs = dict(d.pop("obs", {}))
-        _check_fields(ObsEncoderConfig, obs, "selector.obs")
-        _check_fields(cls, d, "selector")
+        obs = d.pop("obs", {})
+        check_fields(ObsEncoderConfig, obs, "selector.obs")
+        obs = dict(obs)
         if "widths" in obs:
             obs["widths"] = tuple(obs["widths"])
         return cls(**d, obs=ObsEncoderConfig(**obs))
-
-
-def _check_fields(cls, d: dict, where: str) -> None:
-    unknown = set(d) - {f.name for f in dataclasses.fields(cls)}
-    if unknown:
-        raise ValueError(f"unknown {where} fields {sorted(unknown)}")
 
 
 @dataclass

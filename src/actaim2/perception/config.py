@@ -25,6 +25,7 @@ from typing import Iterable, Mapping
 
 import yaml
 
+from actaim2.config_fields import check_fields
 from actaim2.perception.fusion import FusionConfig
 from actaim2.perception.ortho_views import CHANNELS, DEFAULT_DEPTH_TOLERANCE, DEFAULT_RESOLUTION, DEFAULT_SPLAT_RADIUS, SPLAT_RADIUS_RANGE
 
@@ -97,10 +98,7 @@ class PerceptionConfig:
     @classmethod
     def from_dict(cls, data: Mapping) -> "PerceptionConfig":
         """The inverse of :meth:`to_dict`; unknown keys are an error (a typo must not pass silently)."""
-        names = {f.name for f in fields(cls)}
-        unknown = sorted(set(data) - names)
-        if unknown:
-            raise ValueError(f"unknown perception configuration field(s) {unknown}; known: {sorted(names)}")
+        check_fields(cls, data, "perception configuration")
         return cls(**dict(data))
 
     def replace(self, **changes) -> "PerceptionConfig":

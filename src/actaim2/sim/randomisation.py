@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import colorsys
 import math
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Mapping
 
@@ -33,6 +33,7 @@ import numpy as np
 import sapien
 import yaml
 
+from actaim2.config_fields import check_fields
 from actaim2.sim.sensor_noise import SensorNoise
 
 if TYPE_CHECKING:
@@ -100,10 +101,7 @@ class DomainRandomisation:
     @classmethod
     def from_dict(cls, data: Mapping) -> "DomainRandomisation":
         """The inverse of :meth:`to_dict`; unknown keys are an error (a typo must not pass silently)."""
-        names = {f.name for f in fields(cls)}
-        unknown = sorted(set(data) - names)
-        if unknown:
-            raise ValueError(f"unknown domain randomisation field(s) {unknown}; known: {sorted(names)}")
+        check_fields(cls, data, "domain randomisation")
         return cls(**dict(data))
 
     def placement_jitter(self) -> tuple[float, float, float]:

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import yaml
 
+from actaim2.config_fields import check_fields
 from actaim2.models.selector_base import SelectorConfig
 
 CONFIG_DIR = Path(__file__).parent / "configs"
@@ -79,31 +80,22 @@ class TrainConfig:
 
     @classmethod
     def from_dict(cls, d: dict) -> "TrainConfig":
-        d = dict(d)
-        _check(cls, d, "train")
+        check_fields(cls, d, "train")
         out: dict = {}
         for key, value in d.items():
             if key == "selector":
                 out[key] = SelectorConfig.from_dict(value)
             elif key.endswith("_phase"):
-                _check(PhaseConfig, value, key)
+                check_fields(PhaseConfig, value, key)
                 out[key] = PhaseConfig(**value)
             elif key == "elbo":
-                _check(ElboWeights, value, key)
+                check_fields(ElboWeights, value, key)
                 out[key] = ElboWeights(**value)
             elif key == "phases":
                 out[key] = tuple(value)
             else:
                 out[key] = value
         return cls(**out)
-
-
-def _check(cls, d: dict, where: str) -> None:
-    if not isinstance(d, dict):
-        raise ValueError(f"{where} must be a mapping, got {type(d).__name__}")
-    unknown = set(d) - {f.name for f in dataclasses.fields(cls)}
-    if unknown:
-        raise ValueError(f"unknown {where} keys {sorted(unknown)}")
 
 
 def load_config(path: str | Path) -> TrainConfig:
