@@ -46,10 +46,10 @@ class ActionFigures:
 
 
 @torch.no_grad()
-def _eps(selector: ModeSelector, data: TrainingData, rows: np.ndarray, device: torch.device) -> dict[str, torch.Tensor]:
-    views, z = data.selector_batch(rows, device)
+def _eps(selector: ModeSelector, init_views: torch.Tensor, z: torch.Tensor) -> dict[str, torch.Tensor]:
+    """Each embedding fed to the predictor, from the keyframes' own O_init and z (already in their batch)."""
     true = selector.standardise(z)
-    return {"true": true, "reconstructed": selector.reconstruct(views, true)}
+    return {"true": true, "reconstructed": selector.reconstruct(init_views, true)}
 
 
 @torch.no_grad()
@@ -63,7 +63,7 @@ def action_figures(selector: ModeSelector, predictor: ActionPredictor, data: Tra
     for chunk in np.array_split(frames, max(1, math.ceil(len(frames) / batch_size))):
         batch = data.keyframe_batch(chunk, device)
         proprio = proprio_features(batch["gripper"], batch["phase"])
-        eps = _eps(selector, data, chunk[:, 0], device)
+        eps = _eps(selector, batch["init_views"], batch["z"])
         truth = batch["keypose"].cpu().numpy()
         for kind in EMBEDDINGS:
             action = decode_action(predictor(batch["views"], eps[kind], proprio), placement)
