@@ -9,16 +9,15 @@ node's CPU time per call: with ``node_pid`` the probe reads it from /proc around
 from __future__ import annotations
 
 import json
-import os
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 from actaim2_msgs.msg import OrthoViews
 from actaim2_msgs.srv import PredictKeypose, SampleMode
 from rclpy.node import Node
 
+from actaim2.bench.processes import cpu_seconds
 from actaim2.keypose import PHASE_NAMES
 from actaim2.ros_main import run_client
 from actaim2.ros_params import declare_parameters
@@ -89,8 +88,7 @@ class ServiceProbe(Node):
         """policy_node's CPU seconds so far (utime + stime), 0 when no pid was given."""
         if not self.p["node_pid"]:
             return 0.0
-        fields = Path(f"/proc/{self.p['node_pid']}/stat").read_text().rsplit(")", 1)[1].split()
-        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+        return cpu_seconds(self.p["node_pid"])
 
 
 def probe(node: ServiceProbe, _stop: threading.Event) -> int:

@@ -23,9 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import random
 import shutil
-import signal
 import subprocess
 import tempfile
 import time
@@ -33,6 +31,8 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+
+from actaim2.bench.processes import cpu_seconds, private_ros_env, ros_run_command, start_logged, stop_group
 
 CLOUD_RATE, JOINT_RATE = 10.0, 100.0  # Hz at rate factor 1
 T0 = 1_700_000_000 * 10**9
@@ -133,33 +133,12 @@ def writer_only(source: Path, storage: str, compression: str, workdir: Path, rep
     return repeats * sum(len(m.data) for m in messages) / wall / 1e6, 100.0 * cpu / wall
 
 
-def _cpu_seconds(pid: int) -> float:
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime + stime
-
-
 def _ros_run(executable: str, params: dict, env: dict, log: Path) -> subprocess.Popen:
-    args = []
-    for name, value in params.items():
-        args += ["-p", f"{name}:={json.dumps(value) if isinstance(value, list) else value}"]
-    return subprocess.Popen(["ros2", "run", "actaim2_policy", executable, "--ros-args", *args], env=env,
-                            stdout=open(log, "w"), stderr=subprocess.STDOUT, start_new_session=True)
-
-
-def _stop(process: subprocess.Popen, timeout: float = 60.0) -> int:
-    if process.poll() is None:
-        os.killpg(process.pid, signal.SIGINT)
-        try:
-            process.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            os.killpg(process.pid, signal.SIGKILL)
-            process.wait()
-    return process.returncode
+    return start_logged(ros_run_command("actaim2_policy", executable, params), env, log)
 
 
 def run_rate(source: Path, topics: list[str], rate: float, args: argparse.Namespace, workdir: Path) -> dict:
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
-               ROS_DOMAIN_ID=str(random.SystemRandom().randint(101, 200)))  # away from the tests' 1-100
+    env = private_ros_env()
     out = workdir / f"recorded_{rate:g}"
     recorder = _ros_run("bag_recorder", {
         "output": str(out), "storage": args.storage, "compression": args.compression,
@@ -178,13 +157,13 @@ def run_rate(source: Path, topics: list[str], rate: float, args: argparse.Namesp
                 raise RuntimeError(f"bag_recorder did not subscribe to every topic: {recorder_log.read_text()[-2000:]}")
             time.sleep(0.2)
         time.sleep(1.5)  # start_delay
-        cpu0, wall0 = _cpu_seconds(recorder.pid), time.monotonic()
+        cpu0, wall0 = cpu_seconds(recorder.pid), time.monotonic()
         time.sleep(args.duration)
-        cpu1, wall1 = _cpu_seconds(recorder.pid), time.monotonic()
+        cpu1, wall1 = cpu_seconds(recorder.pid), time.monotonic()
     finally:
-        _stop(player)
+        stop_group(player, timeout=60.0)
         time.sleep(1.0)  # the last messages reach the recorder
-        _stop(recorder, timeout=120.0)
+        stop_group(recorder, timeout=120.0)
     played = json.loads((workdir / f"player_{rate:g}.json").read_text())
     recorded = json.loads((workdir / f"recorder_{rate:g}.json").read_text())
     size = sum(p.stat().st_size for p in out.iterdir())

@@ -27,9 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import random
 import shutil
-import signal
 import subprocess
 import tempfile
 import time
@@ -39,6 +37,8 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
+
+from actaim2.bench.processes import private_ros_env, ros_run_command, start_logged, stop_group
 
 BASELINE_COMMIT = "6bab265"  # the last ortho_views.py with one pixel per point (before splatting, issue 10)
 BASELINE_PATH = "src/actaim2/perception/ortho_views.py"
@@ -176,32 +176,8 @@ def in_process(scene: Scene, config, repeats: int, baseline: Callable | None = N
     return {name: (np.array(wall), np.array(cpu)) for name, (wall, cpu) in times.items()}
 
 
-def _ros_env(fastdds_profile: Path | None) -> dict[str, str]:
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
-    env["ROS_DOMAIN_ID"] = str(random.SystemRandom().randint(101, 200))  # away from the tests' 1-100
-    if fastdds_profile is not None:
-        env["FASTRTPS_DEFAULT_PROFILES_FILE"] = str(fastdds_profile.resolve())
-    return env
-
-
 def _ros_run(executable: str, params: dict, env: dict[str, str], log: Path, **popen) -> subprocess.Popen:
-    args = []
-    for name, value in params.items():
-        args += ["-p", f"{name}:={json.dumps(value) if isinstance(value, list) else value}"]
-    return subprocess.Popen(
-        ["ros2", "run", "actaim2_perception", executable, "--ros-args", *args],
-        env=env, start_new_session=True, stderr=open(log, "w"), **popen,
-    )
-
-
-def _stop(process: subprocess.Popen) -> None:
-    if process.poll() is None:
-        os.killpg(process.pid, signal.SIGINT)
-        try:
-            process.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            os.killpg(process.pid, signal.SIGKILL)
-            process.wait()
+    return start_logged(ros_run_command("actaim2_perception", executable, params), env, log, **popen)
 
 
 def through_node(
@@ -210,7 +186,7 @@ def through_node(
     """One fusion_node with ``config``; one latency_probe run per input rate. Returns the probes' JSON results."""
     from actaim2.perception.config import save_perception_config
 
-    env = _ros_env(fastdds_profile)
+    env = private_ros_env(fastdds_profile)
     scene_file = workdir / f"{scene.rig}.npz"
     save_scene(scene, scene_file)
     config_file = workdir / f"perception_{scene.rig}_{config.resolution}.yaml"
@@ -232,7 +208,7 @@ def through_node(
             result = json.loads(lines[-1]) if lines else {"error": f"probe exited {probe.returncode} without a result"}
             results.append(dict(result, rate=rate))
     finally:
-        _stop(node)
+        stop_group(node, timeout=10.0)
     return results
 
 

@@ -21,14 +21,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import random
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
+
+from actaim2.bench.processes import private_ros_env, ros_run_command, start_logged, stop_group
 
 TARGETS_MS = {"sample_mode": 10.0, "predict_keypose": 30.0}
 EPISODE_TARGET_S = 15.0
@@ -76,25 +75,6 @@ def save_views(path: Path, perception, seed: int = 0) -> None:
     np.savez(path, data=data, views=np.array(VIEWS), channels=np.array(perception.channels), digest=perception.digest())
 
 
-def _ros_env() -> dict:
-    return dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
-                ROS_DOMAIN_ID=str(random.SystemRandom().randint(101, 200)))  # away from the tests' 1-100
-
-
-def _start(cmd: list[str], env: dict, log: Path) -> subprocess.Popen:
-    return subprocess.Popen(cmd, env=env, stdout=open(log, "w"), stderr=subprocess.STDOUT, start_new_session=True)
-
-
-def _stop(process: subprocess.Popen, timeout: float = 30.0) -> None:
-    if process.poll() is None:
-        os.killpg(process.pid, signal.SIGINT)
-        try:
-            process.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            os.killpg(process.pid, signal.SIGKILL)
-            process.wait()
-
-
 def _rss_mb(pid: int) -> float:
     for line in Path(f"/proc/{pid}/status").read_text().splitlines():
         if line.startswith("VmRSS:"):
@@ -104,21 +84,20 @@ def _rss_mb(pid: int) -> float:
 
 def round_trips(stem: Path, perception_arg: str, perception, args: argparse.Namespace, workdir: Path) -> dict:
     """Per service: round trips (ms) and the node's CPU time per call (ms); the node's RSS (MB)."""
-    env = _ros_env()
+    env = private_ros_env()
     views = workdir / "views.npz"
     save_views(views, perception)
-    node = _start(["ros2", "run", "actaim2_policy", "policy_node", "--ros-args", "-p", f"checkpoint:={stem}",
-                   "-p", f"perception_config:={perception_arg}", "-p", f"torch_threads:={args.threads}"], env,
-                  workdir / "policy_node.log")
+    node = start_logged(ros_run_command("actaim2_policy", "policy_node", {
+        "checkpoint": stem, "perception_config": perception_arg, "torch_threads": args.threads}), env, workdir / "policy_node.log")
     result: dict = {}
     try:
         for service in ("sample_mode", "predict_keypose"):
             summary = workdir / f"{service}.json"
             summary.unlink(missing_ok=True)
-            probe = subprocess.run(["ros2", "run", "actaim2_policy", "service_probe", "--ros-args", "-p", f"views_file:={views}",
-                                    "-p", f"service:={service}", "-p", f"calls:={args.calls}", "-p", f"summary_file:={summary}",
-                                    "-p", f"node_pid:={node.pid}"],  # `ros2 run` execs the node: the same pid
-                                   env=env, capture_output=True, text=True, timeout=600)
+            probe = subprocess.run(ros_run_command("actaim2_policy", "service_probe", {
+                "views_file": views, "service": service, "calls": args.calls, "summary_file": summary,
+                "node_pid": node.pid}),  # `ros2 run` execs the node: the same pid
+                env=env, capture_output=True, text=True, timeout=600)
             if probe.returncode != 0 or not summary.exists():
                 raise RuntimeError(f"service_probe failed:\n{probe.stdout[-2000:]}{probe.stderr[-2000:]}\n"
                                    f"policy_node log:\n{(workdir / 'policy_node.log').read_text()[-2000:]}")
@@ -128,7 +107,7 @@ def round_trips(stem: Path, perception_arg: str, perception, args: argparse.Name
             result["served"] = timed["served"]
         result["rss_mb"] = _rss_mb(node.pid)
     finally:
-        _stop(node)
+        stop_group(node)
     return result
 
 
@@ -146,17 +125,17 @@ def episode_times(stem: Path | None, perception_arg: str, args: argparse.Namespa
                 node["parameters"] = {**node.get("parameters", {}), "checkpoint": str(stem), "perception_config": perception_arg}
     graphs_file = workdir / "graphs.yaml"
     graphs_file.write_text(yaml.safe_dump({"sim_panda_ring5": graph}))
-    env = _ros_env()
+    env = private_ros_env()
     records = workdir / "episodes.jsonl"
-    launch = _start([sys.executable, "-m", "actaim2.cli", "launch", "sim_panda_ring5", "--graphs", str(graphs_file),
-                     "--logs", str(workdir / "graph")], env, workdir / "launch.log")
+    launch = start_logged([sys.executable, "-m", "actaim2.cli", "launch", "sim_panda_ring5", "--graphs", str(graphs_file),
+                           "--logs", str(workdir / "graph")], env, workdir / "launch.log")
     keyposes = "policy" if stem is not None else "sampler"
     try:
-        runner = subprocess.run(["ros2", "run", "actaim2_policy", "episode_runner", "--ros-args", "-p", f"episodes:={args.episodes}",
-                                 "-p", f"keyposes:={keyposes}", "-p", f"jsonl_file:={records}", "-p", "server_timeout:=180.0"],
-                                env=env, capture_output=True, text=True, timeout=300 + 120 * args.episodes)
+        runner = subprocess.run(ros_run_command("actaim2_policy", "episode_runner", {
+            "episodes": args.episodes, "keyposes": keyposes, "jsonl_file": records, "server_timeout": 180.0}),
+            env=env, capture_output=True, text=True, timeout=300 + 120 * args.episodes)
     finally:
-        _stop(launch, timeout=60.0)
+        stop_group(launch, timeout=60.0)
     (workdir / "episode_runner.log").write_text(runner.stdout + runner.stderr)
     if runner.returncode != 0:
         raise RuntimeError(f"episode_runner failed (log {workdir / 'episode_runner.log'}):\n{runner.stderr[-2000:]}")
