@@ -25,7 +25,7 @@ from typing import Iterable, Mapping
 
 import yaml
 
-from actaim2.config_fields import check_fields
+from actaim2.config_fields import check_fields, load_yaml_config
 from actaim2.perception.fusion import FusionConfig
 from actaim2.perception.ortho_views import CHANNELS, DEFAULT_DEPTH_TOLERANCE, DEFAULT_RESOLUTION, DEFAULT_SPLAT_RADIUS, SPLAT_RADIUS_RANGE
 
@@ -182,14 +182,7 @@ def rig_config_path(name_or_path: str | Path) -> Path:
 
 def load_perception_config(name_or_path: str | Path) -> PerceptionConfig:
     """The configuration of a rig name (``ring5``, ``azure_kinect``) or of a YAML file."""
-    path = rig_config_path(name_or_path)
-    data = yaml.safe_load(path.read_text())
-    if not isinstance(data, dict):
-        raise ValueError(f"{path}: expected a mapping of perception configuration fields")
-    try:
-        return PerceptionConfig.from_dict(data)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{path}: {exc}") from exc
+    return load_yaml_config(PerceptionConfig, rig_config_path(name_or_path))
 
 
 def save_perception_config(config: PerceptionConfig, path: str | Path) -> None:

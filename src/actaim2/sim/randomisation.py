@@ -31,9 +31,8 @@ from typing import TYPE_CHECKING, Mapping
 
 import numpy as np
 import sapien
-import yaml
 
-from actaim2.config_fields import check_fields
+from actaim2.config_fields import check_fields, load_yaml_config
 from actaim2.sim.sensor_noise import SensorNoise
 
 if TYPE_CHECKING:
@@ -119,13 +118,7 @@ def load_randomisation(name_or_path: str | Path) -> DomainRandomisation:
     path = DEFAULT_FILE if str(name_or_path) == "default" else Path(name_or_path)
     if not path.is_file():
         raise FileNotFoundError(f"no domain randomisation file {path} (give a YAML, or 'default')")
-    data = yaml.safe_load(path.read_text())
-    if not isinstance(data, dict):
-        raise ValueError(f"{path}: expected a mapping of domain randomisation fields")
-    try:
-        return DomainRandomisation.from_dict(data)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{path}: {exc}") from exc
+    return load_yaml_config(DomainRandomisation, path)
 
 
 def colour_temperature_rgb(kelvin: float) -> np.ndarray:
