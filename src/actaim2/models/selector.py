@@ -61,8 +61,6 @@ class CGMVAE(ModeSelector):
     def __init__(self, config: SelectorConfig):
         super().__init__(config)
         c, k = self.condition_dim, config.clusters
-        self.embed_eps = torch.nn.Linear(config.z_dim, config.width)
-        self.embed_condition = torch.nn.Linear(c, config.width)
         self.q_x = GaussianHead(config.width, config.width, config.latent_dim, config.blocks)
         self.q_y = GaussianHead(config.width, config.width, config.y_dim, config.blocks)
         self.prior_x = GaussianHead(config.y_dim + c, config.width, config.latent_dim, config.blocks, copies=k)
@@ -80,7 +78,7 @@ class CGMVAE(ModeSelector):
 
     def _posteriors(self, flat: torch.Tensor, eps_true: torch.Tensor):
         """(mean, logvar) of q(x | eps, O) and of q(y | eps, O); both read [eps, O] embedded to one width."""
-        h = torch.nn.functional.gelu(self.embed_eps(eps_true) + self.embed_condition(flat))
+        h = self.joint_embedding(flat, eps_true)
         return self.q_x(h), self.q_y(h)
 
     def forward(self, views: torch.Tensor, eps_true: torch.Tensor, noise: dict[str, torch.Tensor] | None = None,

@@ -4,6 +4,8 @@ The CGMVAE (``selector.py``) and the baselines (``baselines/cvae.py``, ``baselin
 differ only in their latent; all of them
 
   * encode the robot-hidden initial views into per-view tokens (``obs_encoder.ObsEncoder``),
+  * start their encoder of eps the same way: eps and the flattened tokens embedded to one width
+    and summed (``ModeSelector.joint_embedding``),
   * reconstruct the dataset's task embedding z with the same transformer decoder
     (``eps_decoder.EpsDecoder``),
   * work in *standardised* z space: eps = (z - mean) / std with the training set's statistics
@@ -81,6 +83,9 @@ class ModeSelector(nn.Module, abc.ABC):
                                   config.decoder_layers, config.decoder_heads)
         self.register_buffer("z_mean", torch.zeros(config.z_dim))
         self.register_buffer("z_std", torch.ones(config.z_dim))
+        # Every selector's encoder q(. | eps, O) starts alike: eps and O embedded to one width (joint_embedding).
+        self.embed_eps = nn.Linear(config.z_dim, config.width)
+        self.embed_condition = nn.Linear(self.condition_dim, config.width)
 
     @property
     def condition_dim(self) -> int:
@@ -116,6 +121,10 @@ class ModeSelector(nn.Module, abc.ABC):
         """Per-view tokens (B, V, d) and their flattening (B, V * d)."""
         tokens = self.obs_encoder(views)
         return tokens, tokens.flatten(1)
+
+    def joint_embedding(self, flat: torch.Tensor, eps_true: torch.Tensor) -> torch.Tensor:
+        """[eps, O] embedded to one width (B, width), the first layer of the encoder q(. | eps, O)."""
+        return nn.functional.gelu(self.embed_eps(eps_true) + self.embed_condition(flat))
 
     def _cluster_argument(self, cluster: int | None, batch: int, device: torch.device) -> torch.Tensor | None:
         if cluster is None:

@@ -23,12 +23,10 @@ class CVAEOutput:
 class CVAESelector(ModeSelector):
     def __init__(self, config: SelectorConfig):
         super().__init__(config)
-        self.embed_eps = torch.nn.Linear(config.z_dim, config.width)
-        self.embed_condition = torch.nn.Linear(self.condition_dim, config.width)
         self.q_w = GaussianHead(config.width, config.width, config.latent_dim, config.blocks)
 
     def _posterior(self, flat: torch.Tensor, eps_true: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        return self.q_w(torch.nn.functional.gelu(self.embed_eps(eps_true) + self.embed_condition(flat)))
+        return self.q_w(self.joint_embedding(flat, eps_true))
 
     def draw_noise(self, batch: int, generator: torch.Generator | None = None,
                    device: torch.device | str = "cpu") -> dict[str, torch.Tensor]:

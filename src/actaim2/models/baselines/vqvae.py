@@ -29,14 +29,12 @@ class VQVAEOutput:
 class VQVAESelector(ModeSelector):
     def __init__(self, config: SelectorConfig):
         super().__init__(config)
-        self.embed_eps = torch.nn.Linear(config.z_dim, config.width)
-        self.embed_condition = torch.nn.Linear(self.condition_dim, config.width)
         self.encoder = ResMLP(config.width, config.width, config.latent_dim, config.blocks)
         self.codebook = torch.nn.Parameter(torch.randn(config.clusters, config.latent_dim))
         self.prior = ResMLP(self.condition_dim, config.width, config.clusters, config.blocks)
 
     def _encode(self, flat: torch.Tensor, eps_true: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        e = self.encoder(torch.nn.functional.gelu(self.embed_eps(eps_true) + self.embed_condition(flat)))
+        e = self.encoder(self.joint_embedding(flat, eps_true))
         return e, torch.cdist(e, self.codebook).argmin(dim=-1)
 
     def draw_noise(self, batch: int, generator: torch.Generator | None = None,
