@@ -1,29 +1,20 @@
 """Fixtures of the fine-tuning tests: teleop bags recorded once per session from a simulated rollout,
 the encoder E they are embedded with, and their conversion into a dataset.
 
-One torch thread, as in tests/train: on a shared 2-core machine a second OpenMP thread slows the
-small networks down instead of speeding them up.
+One torch thread, as in tests/train (tests/torch_threads.py).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator
 
 import pytest
 import torch
 from sim_bags import DemoSpec, RecordedDemo, SimTeleop
+from torch_threads import one_torch_thread  # noqa: F401  (autouse for this folder)
 
 # two pulls and two pushes, on different drawers and placements
 DEMOS = [DemoSpec(0, 1, "pull"), DemoSpec(1, 1, "push"), DemoSpec(2, 0, "pull"), DemoSpec(3, 2, "push")]
-
-
-@pytest.fixture(autouse=True)
-def one_torch_thread() -> Iterator[None]:
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
 
 
 @dataclass(frozen=True)

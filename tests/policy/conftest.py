@@ -3,16 +3,11 @@
 from __future__ import annotations
 
 import pytest
-import torch
-
 from tiny_policy import TinyCheckpoint, make_checkpoint
+from torch_threads import single_torch_thread
 
 
 @pytest.fixture(scope="session")
 def tiny_checkpoint(tmp_path_factory) -> TinyCheckpoint:
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
+    with single_torch_thread():
         return make_checkpoint(tmp_path_factory.mktemp("tiny_policy"))
-    finally:
-        torch.set_num_threads(threads)

@@ -20,6 +20,7 @@ from actaim2.train.config import load_config
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import POLICY, Trainer
 from tiny_policy import CONFIG, TARGETS, training_data
+from torch_threads import single_torch_thread
 
 ABLATIONS = {"depth": "ablation_depth", "single_view": "ablation_single_view"}
 pytestmark = pytest.mark.timeout(1200)  # ~20 s of CPU; the rest is room for a loaded shared machine
@@ -28,12 +29,10 @@ pytestmark = pytest.mark.timeout(1200)  # ~20 s of CPU; the rest is room for a l
 @pytest.fixture(scope="module")
 def ablated(tiny_checkpoint, tmp_path_factory) -> dict[str, PolicyModel]:
     """The tiny policy's ablations: its config with the bundled ablation config's phases and predictor inputs."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
     placement = CubePlacement.of(tiny_checkpoint.config)
     data = training_data(tiny_checkpoint.views, placement)
     models = {}
-    try:
+    with single_torch_thread():
         for name, bundled in ABLATIONS.items():
             ablation = load_config(bundled)
             inputs = {k: ablation.predictor[k] for k in ("inputs", "view")}
@@ -43,8 +42,6 @@ def ablated(tiny_checkpoint, tmp_path_factory) -> dict[str, PolicyModel]:
             Trainer(config, data, None, placement, perception_record(tiny_checkpoint.config), "tiny-synthetic", out,
                     init_distributed("cpu"), init_from=tiny_checkpoint.stem, show_progress=False).run()
             models[name] = PolicyModel.load(out / POLICY, tiny_checkpoint.config, "cpu")
-    finally:
-        torch.set_num_threads(threads)
     return models
 
 
