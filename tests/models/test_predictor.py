@@ -13,7 +13,7 @@ from actaim2.models.predictor import (
     decode_action,
     proprio_features,
 )
-from actaim2.models.rotation_bins import geodesic_deg
+from actaim2.models.rotation_bins import grasp_geodesic_deg
 from actaim2.models.view_geometry import CubePlacement
 from actaim2.perception.ortho_views import CHANNELS, VIEWS
 from actaim2.train.action_loss import action_loss, action_targets
@@ -79,14 +79,15 @@ def test_proprio_features_are_gripper_then_phase_one_hot():
 
 def test_targets_decode_back_to_the_keypose():
     """Outputs equal to the targets decode to the keypose: position within one cell, rotation
-    within the bins' bound, gripper exact (targets and decoding share one geometry)."""
+    within the bins' bound up to the hand's half-turn symmetry (the targets' class of a grasp),
+    gripper exact (targets and decoding share one geometry)."""
     kp = keyposes([[0.7, -0.2, 0.3], [0.2, 0.4, 0.9], [1.05, 0.55, -0.15]], seed=1)
     targets = action_targets(kp, PLACEMENT, 128)
     rotation = torch.nn.functional.one_hot(targets.rotation_bins, 72).float() * 10
     gripper = torch.nn.functional.one_hot(targets.gripper, 2).float() * 10
     decoded = decode_action(PredictorOutput(targets.heatmaps.clamp_min(1e-30).log(), rotation, gripper), PLACEMENT)
     assert (decoded.position - kp[:, :3]).abs().max() <= 2 * PLACEMENT.half_extent / 128
-    assert geodesic_deg(decoded.quat_xyzw.numpy(), kp[:, 3:7].numpy()).max() <= 4.4
+    assert grasp_geodesic_deg(decoded.quat_xyzw.numpy(), kp[:, 3:7].numpy()).max() <= 4.4
     assert decoded.gripper_closed.tolist() == [False, True, False]
 
 
