@@ -51,7 +51,8 @@ class Recorder:
         from sensor_msgs.msg import JointState
 
         self.lock = threading.Lock()
-        self.joints: list[tuple[float, dict, dict]] = []  # (monotonic time, positions, velocities)
+        # (monotonic time of receipt, positions, velocities, header stamp in sim seconds)
+        self.joints: list[tuple[float, dict, dict, float]] = []
         self.object: dict[str, float] = {}
         self.keyposes = []
         node.create_subscription(JointState, "/joint_states", self._on_joints, 50)
@@ -60,11 +61,15 @@ class Recorder:
 
     def _on_joints(self, msg) -> None:
         with self.lock:
-            self.joints.append((time.monotonic(), dict(zip(msg.name, msg.position)), dict(zip(msg.name, msg.velocity))))
+            stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+            self.joints.append((time.monotonic(), dict(zip(msg.name, msg.position)), dict(zip(msg.name, msg.velocity)), stamp))
 
-    def arm(self, names, since: float = -np.inf, until: float = np.inf):
+    def arm(self, names, since: float = -np.inf, until: float = np.inf, sim_time: bool = False):
+        """(times, positions, velocities) of the arm joints received in [since, until]: times of receipt
+        (monotonic), or with ``sim_time`` the messages' stamps, which a loaded machine cannot delay."""
         with self.lock:
-            rows = [(t, p, v) for t, p, v in self.joints if since <= t <= until]
+            rows = [(s if sim_time else t, p, v) for t, p, v, s in self.joints]
+        rows = [row for row in rows if since <= row[0] <= until]
         return (np.array([t for t, _, _ in rows]), np.array([[p[n] for n in names] for _, p, _ in rows]),
                 np.array([[v[n] for n in names] for _, _, v in rows]))
 
@@ -205,12 +210,17 @@ def test_cancel_stops_the_arm_within_half_a_second(start_node, ros_node, panda):
     assert moving.wait(30.0), "the arm never got under way"
     _, _, v = recorder.arm(panda.joint_names, since=time.monotonic() - 0.2)
     assert np.abs(v).max() > 0.1  # really moving when cancelled
-    cancelled_at = time.monotonic()
+    # timed in sim time (the /joint_states stamps): on a loaded machine messages reach the test late
+    # and bunched, so times of receipt would neither time the stop nor cover the 1.5 s after it.
+    # The cancel is placed at the newest stamp received, never later than the sim's clock: the
+    # stop interval measured from it is, if anything, too long.
+    cancelled_at = recorder.arm(panda.joint_names, sim_time=True)[0].max()
     handle.cancel_goal_async()
     status, result = client.result(handle, timeout=10.0)
     assert status == GoalStatus.STATUS_CANCELED and not result.success and "cancel" in result.message
-    time.sleep(max(0.0, cancelled_at + 1.5 - time.monotonic()))  # record what happens after the stop
-    t, _, v = recorder.arm(panda.joint_names, since=cancelled_at)
+    assert wait_for(lambda: recorder.arm(panda.joint_names, since=cancelled_at + 1.5, sim_time=True)[0].size > 0, 30.0), \
+        "no /joint_states stamped 1.5 s after the cancel reached the test"
+    t, _, v = recorder.arm(panda.joint_names, since=cancelled_at, sim_time=True)
     still = np.all(np.abs(v) < 0.02, axis=1)
     moving_after = t[~still]
     stopped_at = moving_after.max() if len(moving_after) else cancelled_at
