@@ -9,9 +9,10 @@ Files written next to the dataset's index:
   labelling.json    the label's model and its accuracy per split and per category, with the
                     measured alternatives
 
-The label (success.py): P(success) from the moved parts' motion by a logistic model calibrated
-on the calibration split (default: the training split) against the ground truth; success iff
-P exceeds the threshold calibrated there too. The ground truth is read for that calibration and for the report, nowhere else. The
+The label (success.py): P(success) from the moved parts' motion, and each part's reach read
+off its object's trajectories, by a logistic model calibrated on the calibration split
+(default: the training split) against the ground truth; success iff P exceeds the threshold
+calibrated there too. The ground truth is read for that calibration and for the report, nowhere else. The
 report headlines the splits that were not used for calibration. The task embeddings z are what
 the GMM-adaptive sampler clusters and what the models learn from; their size ||z|| is also the
 paper's success score, reported as an alternative.
@@ -35,7 +36,8 @@ from actaim2.data.encoder_training import train_autoencoder
 from actaim2.data.part_motion import MotionConfig, PartMotion, part_motions
 from actaim2.data.splits import TRAIN
 from actaim2.data.storage import DatasetReader, write_labels
-from actaim2.data.success import DEFAULT_MODEL, SuccessModel, calibrate_threshold, change, label_metrics, motion_features
+from actaim2.data.success import (DEFAULT_MODEL, ReachConfig, SuccessModel, calibrate_threshold, change, label_metrics,
+                                   motion_features, part_reaches)
 
 ENCODER_FILE = "encoder.pt"
 EMBEDDINGS_FILE = "embeddings.npz"
@@ -175,13 +177,32 @@ def measure_motions(root: str | Path, config: MotionConfig = MotionConfig(), wor
 
 # -- the label ------------------------------------------------------------------------------
 
-def success_scores(parts_per_trajectory: list[list[PartMotion]], model: SuccessModel) -> np.ndarray:
-    """P(success) of each trajectory: the most likely of its moved parts (0 when nothing moved)."""
-    return np.array([max((model.probability(motion_features([p])) for p in parts), default=0.0)
-                     for parts in parts_per_trajectory])
+def object_reaches(entries: list[dict], motions: dict[str, list[PartMotion]], config: ReachConfig = ReachConfig()
+                   ) -> list[list[float]]:
+    """Each entry's moved parts' reaches (:func:`part_reaches`), read off the given entries of its object."""
+    by_object: dict[str, list[int]] = {}
+    for k, e in enumerate(entries):
+        by_object.setdefault(e["object_id"], []).append(k)
+    out: list[list[float]] = [[] for _ in entries]
+    for rows in by_object.values():
+        for k, reaches in zip(rows, part_reaches([motions[entries[k]["id"]] for k in rows], config)):
+            out[k] = reaches
+    return out
 
 
-def calibrate(parts_per_trajectory: list[list[PartMotion]], gt: np.ndarray) -> SuccessModel | None:
+def success_scores(parts_per_trajectory: list[list[PartMotion]], model: SuccessModel,
+                   reaches: list[list[float]] | None = None) -> np.ndarray:
+    """P(success) of each trajectory: the most likely of its moved parts (0 when nothing moved).
+
+    ``reaches`` as :func:`object_reaches` gives them; None: every reach unknown (a lone trajectory).
+    """
+    reaches = reaches if reaches is not None else [[0.0] * len(parts) for parts in parts_per_trajectory]
+    return np.array([max((model.probability(motion_features(p, r)) for p, r in zip(parts, rs)), default=0.0)
+                     for parts, rs in zip(parts_per_trajectory, reaches)])
+
+
+def calibrate(parts_per_trajectory: list[list[PartMotion]], gt: np.ndarray,
+              reaches: list[list[float]] | None = None) -> SuccessModel | None:
     """Fit the success model on trajectories whose outcome says which part it is about.
 
     A trajectory with one moved part lends it its outcome; in a failed one every moved part
@@ -190,31 +211,35 @@ def calibrate(parts_per_trajectory: list[list[PartMotion]], gt: np.ndarray) -> S
     accurate one over all the given trajectories. None when fewer than ``MIN_CALIBRATION``
     parts of either outcome are left (a handful of trajectories calibrates nothing).
     """
+    reaches = reaches if reaches is not None else [[0.0] * len(parts) for parts in parts_per_trajectory]
     rows, outcomes = [], []
-    for parts, success in zip(parts_per_trajectory, gt):
+    for parts, rs, success in zip(parts_per_trajectory, reaches, gt):
         if len(parts) == 1 or (parts and not success):
-            rows += [motion_features([p]) for p in parts]
+            rows += [motion_features(p, r) for p, r in zip(parts, rs)]
             outcomes += [bool(success)] * len(parts)
     y = np.array(outcomes, dtype=bool)
     if min(y.sum(), (~y).sum()) < MIN_CALIBRATION:
         return None
     model = SuccessModel.fit(np.array(rows), y)
-    return replace(model, threshold=calibrate_threshold(success_scores(parts_per_trajectory, model), gt))
+    return replace(model, threshold=calibrate_threshold(success_scores(parts_per_trajectory, model, reaches), gt))
 
 
-def visual_labels(entries: list[dict], motions: dict[str, list[PartMotion]], calibration_split: str = TRAIN
-                  ) -> tuple[np.ndarray, SuccessModel, bool]:
+def visual_labels(entries: list[dict], motions: dict[str, list[PartMotion]], calibration_split: str = TRAIN,
+                  reach_config: ReachConfig = ReachConfig()) -> tuple[np.ndarray, SuccessModel, bool]:
     """(P(success) per entry, the model, whether it was calibrated on ``calibration_split``).
 
-    Without enough moved trajectories of both outcomes in the calibration split the model is
-    :data:`DEFAULT_MODEL`, the calibration measured on the collection in docs/data_collection.md.
+    Reaches are read off the given entries, per object. Without enough moved trajectories of
+    both outcomes in the calibration split the model is :data:`DEFAULT_MODEL`, the calibration
+    measured on the collection in docs/data_collection.md.
     """
     parts = [motions[e["id"]] for e in entries]
+    reaches = object_reaches(entries, motions, reach_config)
     calib = [k for k, e in enumerate(entries) if e["split"] == calibration_split]
     if not calib:
         raise ValueError(f"no trajectories in calibration split {calibration_split!r} to calibrate the success label on")
-    model = calibrate([parts[k] for k in calib], np.array([entries[k]["gt_success"] for k in calib], dtype=bool))
-    return success_scores(parts, model or DEFAULT_MODEL), model or DEFAULT_MODEL, model is not None
+    model = calibrate([parts[k] for k in calib], np.array([entries[k]["gt_success"] for k in calib], dtype=bool),
+                      [reaches[k] for k in calib])
+    return success_scores(parts, model or DEFAULT_MODEL, reaches), model or DEFAULT_MODEL, model is not None
 
 
 def _report(labels: np.ndarray, gt: np.ndarray, splits: np.ndarray, calib: np.ndarray) -> dict:
@@ -225,7 +250,8 @@ def _report(labels: np.ndarray, gt: np.ndarray, splits: np.ndarray, calib: np.nd
 
 
 def label_dataset(root: str | Path, encoder_path: str | Path, calibration_split: str = TRAIN, workers: int = 0,
-                  motion_config: MotionConfig = MotionConfig(), show_progress: bool = True) -> dict:
+                  motion_config: MotionConfig = MotionConfig(), reach_config: ReachConfig = ReachConfig(),
+                  show_progress: bool = True) -> dict:
     """Measure motions, embed, calibrate on ``calibration_split``, write labels; returns the report."""
     reader = DatasetReader(root)
     if not reader.entries:
@@ -234,7 +260,7 @@ def label_dataset(root: str | Path, encoder_path: str | Path, calibration_split:
     encoder = ImageEncoder.load(encoder_path)
     z = embed_dataset(reader, encoder, encoder_digest(encoder_path), show_progress)
     entries = reader.entries
-    scores, model, calibrated = visual_labels(entries, motions, calibration_split)
+    scores, model, calibrated = visual_labels(entries, motions, calibration_split, reach_config)
     labels = scores > model.threshold
     gt = np.array([e["gt_success"] for e in entries], dtype=bool)
     splits = np.array([e["split"] for e in entries])
@@ -255,13 +281,22 @@ def label_dataset(root: str | Path, encoder_path: str | Path, calibration_split:
             continue
         threshold = calibrate_threshold(values[calib], gt[calib])
         alternatives[name] = {"description": description, "threshold": threshold, **_report(values > threshold, gt, splits, calib)}
+    absolute = calibrate([p for p, c in zip(parts, calib) if c], gt[calib])  # the same model without the reach terms
+    if absolute is not None:
+        alternatives["without_reach"] = {"description": "the same model with every reach unknown (absolute terms only)",
+                                         "threshold": absolute.threshold,
+                                         **_report(success_scores(parts, absolute) > absolute.threshold, gt, splits, calib)}
     alternatives["anything_moved"] = {"description": "some part moved (no calibration)",
                                       **_report(np.array([bool(ps) for ps in parts]), gt, splits, calib)}
     categories = np.array([e["category"] for e in entries])
+    known = [r > 0 for rs in object_reaches(entries, motions, reach_config) for r in rs]
     report = {
-        "method": "part motion (part_motion.py) + logistic model (success.py), P(success) > calibrated threshold",
+        "method": "part motion (part_motion.py) + reach per part from its object's trajectories + logistic model (success.py), "
+                  "P(success) > calibrated threshold",
         "model": {**model.to_json(), "calibrated_here": calibrated},
         "motion_config": asdict(motion_config),
+        "reach_config": asdict(reach_config),
+        "parts_with_known_reach": float(np.mean(known)) if known else 0.0,
         "calibration_split": calibration_split,
         **_report(labels, gt, splits, calib),
         "per_category": {c: {"split": str(splits[categories == c][0]), **label_metrics(labels[categories == c], gt[categories == c])}

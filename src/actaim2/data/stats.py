@@ -94,7 +94,8 @@ def labelling_table(report: dict) -> str:
     if "method" not in report:  # labelling.json of the per-object score this version replaced
         return "labelled by an earlier version (per-object score): run the same `actaim2 collect` again to relabel"
     metrics = ("accuracy", "balanced_accuracy", "precision", "recall")
-    lines = [f"label: {report['method']}; calibrated on split '{report['calibration_split']}'", "",
+    reach = f"; moved parts with a known reach: {_percent(report['parts_with_known_reach'])}" if "parts_with_known_reach" in report else ""
+    lines = [f"label: {report['method']}; calibrated on split '{report['calibration_split']}'{reach}", "",
              "| split | trajectories | successes (gt) | accuracy | balanced accuracy | precision | recall | false pos. | false neg. |",
              "|---|---|---|---|---|---|---|---|---|"]
     rows = dict(report["per_split"])
