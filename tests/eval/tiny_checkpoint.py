@@ -1,8 +1,8 @@
 """Tiny real checkpoints for the evaluation tests, trained in seconds through the training API.
 
-Views are the ring5 configuration's at 64 px (the shape the evaluation renders for them); the
-training set is noise views with task embeddings of the real encoder's size (5 cameras x 384,
-so Goal-RVT's goal embeddings fit), and keyposes fixed per phase in front of the workspace:
+Views are the ring5 configuration's (or another rig's) at 64 px (the shape the evaluation renders
+for them); the training set is noise views with task embeddings of the real encoder's size (384
+per camera of the rig, so Goal-RVT's goal embeddings fit), and keyposes fixed per phase in front of the workspace:
 the predictor learns phase -> keypose, the selector barely anything. What the tests check is
 the evaluation machinery on real checkpoints, not the policy's quality.
 """
@@ -19,6 +19,7 @@ from actaim2.models.obs_encoder import ObsEncoderConfig
 from actaim2.models.selector_base import SelectorConfig
 from actaim2.models.view_geometry import CubePlacement
 from actaim2.perception.config import load_perception_config
+from actaim2.sim.cameras import make_rig
 from actaim2.train.checkpoint import perception_record
 from actaim2.train.config import PhaseConfig, TrainConfig
 from actaim2.train.data import TrainingData
@@ -50,16 +51,19 @@ def make_encoder(path: Path) -> Path:
     return path
 
 
-def make_checkpoint(out: Path, kind: str = "cgmvae", trajectories: int = 8, seed: int = 0) -> Path:
-    """Train a tiny policy with selector ``kind`` into ``out``; returns its stem (``out/policy``; Goal-RVT: ``out/goal_rvt``)."""
-    config = load_perception_config("ring5").replace(resolution=RESOLUTION)
+def make_checkpoint(out: Path, kind: str = "cgmvae", trajectories: int = 8, seed: int = 0, perception: str = "ring5",
+                    clusters: int = CLUSTERS) -> Path:
+    """Train a tiny policy with selector ``kind`` (``clusters`` of them) on views of the ``perception`` configuration
+    into ``out``; returns its stem (``out/policy``; Goal-RVT: ``out/goal_rvt``)."""
+    config = load_perception_config(perception).replace(resolution=RESOLUTION)
     rng = np.random.default_rng(seed)
     views = rng.uniform(0.0, 1.0, (trajectories, 5, len(config.channels), RESOLUTION, RESOLUTION)).astype(np.float16)
     placement = CubePlacement.of(config)
     keyposes = np.repeat(TARGETS[None], trajectories, axis=0)
     gripper = np.repeat(np.array([[False, False, False, True]]), trajectories, axis=0)
     valid = placement.contains(torch.from_numpy(keyposes[..., :3])).numpy()
-    z = rng.normal(size=(trajectories, 5 * ImageEncoder.autoencoder().dim_per_camera))
+    cameras = len(make_rig(config.rig, np.asarray(config.center)))
+    z = rng.normal(size=(trajectories, cameras * ImageEncoder.autoencoder().dim_per_camera))
     # Unit spread in every dimension: the selector's standardisation (spreads floored at their
     # median) then leaves z as drawn, and the barely trained predictor sees the eps scale it was
     # trained on (with spreads of 0.3-2 from 8 draws, the floor shrank half the dimensions and
@@ -68,7 +72,7 @@ def make_checkpoint(out: Path, kind: str = "cgmvae", trajectories: int = 8, seed
     data = TrainingData(views, np.repeat(views[:, None], 4, axis=1), keyposes, gripper, valid, z,
                         [f"t{i:03d}" for i in range(trajectories)])
     torch.manual_seed(seed)
-    train = dataclasses.replace(CONFIG, selector=dataclasses.replace(CONFIG.selector, kind=kind))
+    train = dataclasses.replace(CONFIG, selector=dataclasses.replace(CONFIG.selector, kind=kind, clusters=clusters))
     Trainer(train, data, None, placement, perception_record(config), "tiny-synthetic", out, init_distributed("cpu"),
             show_progress=False).run()
     return out / POLICY

@@ -15,4 +15,6 @@
   tables        the markdown tables (paper Table 1, Table 2, appendix, acceptance checks)
   checkpoints   a checkpoint's perception configuration and digests
   evaluate_cli  the command
+  standin       the three-drawer stand-in of the fine-tuning result: its episodes, verdicts and tables
+  standin_cli   its command, ``actaim2 eval-standin``
 """

@@ -12,6 +12,7 @@ part already moved counts. Nothing is retried: one task, one sample.
 from __future__ import annotations
 
 import time
+from typing import Sequence
 
 import numpy as np
 
@@ -27,8 +28,9 @@ from actaim2.sim.env import SimEnv
 
 
 def run_sample(env: SimEnv, planner: KeyposePlanner, executor, cloud_config: CloudConfig, source, task: EvalTask,
-               dof_fraction: float, velocity_scaling: float) -> dict:
-    """Execute one sample of ``source`` for ``task``; the result record (JSON types)."""
+               dof_fraction: float | Sequence[float], velocity_scaling: float) -> dict:
+    """Execute one sample of ``source`` for ``task``, the object's DoFs reset to ``dof_fraction`` of their ranges
+    (one for all, or one each); the result record (JSON types)."""
     started, cpu = time.perf_counter(), time.process_time()
     obj = task.obj
     info = env.reset(obj.category if not obj.folder else None, max(obj.instance, 0), seed=task.reset_seed,

@@ -129,8 +129,6 @@ def _encoder(args: argparse.Namespace) -> Path | None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from actaim2.eval.checkpoints import describe, perception_of
     from actaim2.eval.data_collection import data_collection_samplers
     from actaim2.eval.evalset import EVAL_SET_VERSION, catalogue_objects, folder_objects
@@ -139,7 +137,6 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.eval.tables import report
     from actaim2.eval.tasks import plan_tasks
     from actaim2.eval.worker import EvalWorker, WorkerSetup
-    from actaim2.parallel import run_unordered
     from actaim2.perception.config import load_perception_config
 
     preset = _preset(args)
@@ -186,18 +183,8 @@ def main(args: argparse.Namespace) -> int:
     todo = [t for t in tasks if t.key not in log.done]
     print(f"{len(tasks)} samples ({preset.name}: {len(objects)} objects, rows {', '.join(methods)}); "
           f"{len(tasks) - len(todo)} already done; render path {render_path}")
-    started, errors = time.perf_counter(), 0
-    bar = tqdm(total=len(todo), unit="sample", disable=args.no_progress)
-    try:
-        for record in run_unordered(EvalWorker, setup, todo, args.workers, args.ray):
-            if "error" in record:
-                errors += 1
-                bar.write(f"{record['key']}: {record['error']}")
-            else:
-                log.append(record)
-            bar.update(1)
-    finally:
-        bar.close()
+    started = time.perf_counter()
+    errors = log.run(EvalWorker, setup, todo, args.workers, args.ray, not args.no_progress)
     seconds = time.perf_counter() - started
     header = _header(args, preset.name, described, render_path, len(objects), len(tasks), len(log.records), errors, seconds)
     records = [log.records[t.key] for t in tasks if t.key in log.records]
@@ -221,13 +208,11 @@ def main(args: argparse.Namespace) -> int:
 def _grounding(args: argparse.Namespace, setup, methods: list[str]) -> int:
     """The grounding experiment: runs of (method, target, seed), resumable by run, then the reward plot."""
     import numpy as np
-    from tqdm import tqdm
 
     from actaim2.eval.evalset import catalogue_objects
     from actaim2.eval.grounding import GROUNDING_METHODS, GroundingRun, reward_plot
     from actaim2.eval.results import ResultLog
     from actaim2.eval.worker import EvalWorker
-    from actaim2.parallel import run_unordered
     from actaim2.sim.objects.catalog import SPLITS
 
     category, _, instance = args.grounding.partition(":")
@@ -243,14 +228,7 @@ def _grounding(args: argparse.Namespace, setup, methods: list[str]) -> int:
     log = ResultLog(args.out / "grounding")
     todo = [r for r in runs if r.key not in log.done]
     print(f"grounding on {obj.key}: {len(runs)} runs of {args.grounding_iterations} samples, {len(runs) - len(todo)} already done")
-    errors = 0
-    for record in tqdm(run_unordered(EvalWorker, setup, todo, args.workers, args.ray), total=len(todo), unit="run",
-                       disable=args.no_progress):
-        if "error" in record:
-            errors += 1
-            print(f"{record['key']}: {record['error']}", file=sys.stderr)
-        else:
-            log.append(record)
+    errors = log.run(EvalWorker, setup, todo, args.workers, args.ray, not args.no_progress, unit="run")
     results = [log.records[r.key] for r in runs if r.key in log.records]
     if results:
         (args.out / "figures").mkdir(parents=True, exist_ok=True)

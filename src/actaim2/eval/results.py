@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any, Callable, Sequence
 
 RESULTS_FILE = "results.jsonl"
 RUN_FILE = "run.json"
@@ -70,3 +71,28 @@ class ResultLog:
             f.write(json.dumps(record) + "\n")
             f.flush()
         self.records[record["key"]] = record
+
+    def run(self, make: Callable[[Any], Any], setup: Any, tasks: Sequence[Any], workers: int, ray: str | None = None,
+            show_progress: bool = True, unit: str = "sample") -> int:
+        """Run ``tasks`` on ``make(setup)`` workers (:func:`actaim2.parallel.run_unordered`) under a progress bar,
+        appending each record as it comes; a record with an error is printed, not kept (a rerun retries it).
+        Returns the number of errors."""
+        from tqdm import tqdm
+
+        from actaim2.parallel import run_unordered
+
+        if not tasks:  # all done: no worker (a simulator) to build
+            return 0
+        errors = 0
+        bar = tqdm(total=len(tasks), unit=unit, disable=not show_progress)
+        try:
+            for record in run_unordered(make, setup, tasks, workers, ray):
+                if "error" in record:
+                    errors += 1
+                    bar.write(f"{record['key']}: {record['error']}")
+                else:
+                    self.append(record)
+                bar.update(1)
+        finally:
+            bar.close()
+        return errors

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from typing import Sequence
 
 from actaim2.data.collect import PRECHECK_IK_RESTARTS, CollectConfig
 
@@ -24,6 +25,7 @@ class WorkerSetup:
     checkpoints: dict[str, str] = field(default_factory=dict)  # method -> checkpoint stem
     encoder: str | None = None  # Goal-RVT's image encoder E (the dataset's)
     gmm: dict | None = None  # object key -> fitted GMMAdaptiveSampler (Data Collection)
+    randomisation: dict | None = None  # DomainRandomisation.to_dict() of every reset (None: the rig's own sensor model)
     dof_fraction: float = _COLLECT_DEFAULTS["dof_fraction"]
     velocity_scaling: float = _COLLECT_DEFAULTS["velocity_scaling"]
     max_samples: int = _COLLECT_DEFAULTS["max_samples"]
@@ -41,10 +43,12 @@ class EvalWorker:
         from actaim2.data.object_cloud import CloudConfig
         from actaim2.rollout.sim_executor import SimEnvExecutor
         from actaim2.sim.env import SimEnv
+        from actaim2.sim.randomisation import DomainRandomisation
 
         torch.set_num_threads(1)  # one core per worker: intra-op threads would only contend
         self.setup = setup
-        self.env = SimEnv(setup.robot, cameras=setup.rig, render_path=setup.render_path)
+        randomisation = DomainRandomisation.from_dict(setup.randomisation) if setup.randomisation is not None else None
+        self.env = SimEnv(setup.robot, cameras=setup.rig, render_path=setup.render_path, randomisation=randomisation)
         robot = RobotModel(self.env.spec)
         checker = CollisionChecker(robot)
         self.planner = KeyposePlanner(robot, checker, IKSolver(robot, checker))
@@ -80,13 +84,23 @@ class EvalWorker:
     def run(self, task) -> dict:
         """The task's result record (an EvalTask's sample, or a GroundingRun's rewards); {key, error} when
         something broke (a rerun retries it)."""
-        from actaim2.eval.episode import run_sample
         from actaim2.eval.grounding import GroundingRun, run_grounding
 
         try:
             if isinstance(task, GroundingRun):
                 return run_grounding(self, task)
-            return run_sample(self.env, self.planner, self.executor, self.cloud_config, self.source(task.method), task,
-                              self.setup.dof_fraction, self.setup.velocity_scaling)
+            return self.sample(task)
         except Exception as exc:  # one broken sample (a simulator error) must not end a 3-hour evaluation
             return {"key": task.key, "method": task.method, "error": repr(exc)}
+
+    def sample(self, task) -> dict:
+        """The record of an EvalTask's sample, every DoF starting at the setup's fraction of its range (a protocol
+        with initial states or verdicts of its own overrides this)."""
+        return self.episode(task, self.setup.dof_fraction)
+
+    def episode(self, task, dof_fraction: float | Sequence[float]) -> dict:
+        """:func:`actaim2.eval.episode.run_sample` of ``task``, the object's DoFs reset to ``dof_fraction`` of their ranges."""
+        from actaim2.eval.episode import run_sample
+
+        return run_sample(self.env, self.planner, self.executor, self.cloud_config, self.source(task.method), task,
+                          dof_fraction, self.setup.velocity_scaling)

@@ -24,6 +24,15 @@ import numpy as np
 
 DEFAULT_VELOCITY_SCALING = 0.5  # control_node's default for goals without one
 STATE_NAMES = ("bottom", "middle", "top")  # drawer_0 is the lowest (three_drawer_shelf recipe)
+MODES = {"push": -1, "pull": +1}  # mode label -> direction of the half-open drawer: push shuts it, pull opens it
+HALF_OPEN = 0.5
+
+
+def initial_state(dofs: int, open_dof: int) -> list[float]:
+    """DoF fractions of an initial state of the protocol: DoF ``open_dof`` half-open, the others shut."""
+    fractions = [0.0] * dofs
+    fractions[open_dof] = HALF_OPEN
+    return fractions
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -57,14 +66,12 @@ def main(args: argparse.Namespace) -> int:
     started, k = time.perf_counter(), 0
     n_dofs = len(env.reset(args.category, args.instance, seed=args.seed).dof_names)
     for state in range(n_dofs):
-        for label, direction in (("push", -1), ("pull", +1)):
+        for label, direction in MODES.items():
             for _ in range(args.per_state):
                 seed = args.seed + k
                 k += 1
                 rng = np.random.default_rng(seed)
-                fractions = [0.0] * n_dofs
-                fractions[state] = 0.5
-                info = env.reset(args.category, args.instance, seed=seed, dof_fraction=fractions)
+                info = env.reset(args.category, args.instance, seed=seed, dof_fraction=initial_state(n_dofs, state))
                 task = ExpertTask(info.dof_names[state], direction)
                 runner = KeyposeRunner(planner, SimEnvExecutor(env), rng=np.random.default_rng(seed))
                 try:
