@@ -22,32 +22,14 @@ ROBOT=kinova_j2s6s200
 SEED=7
 LOGS="$ROOT/runs/golden_bags"; rm -rf "$LOGS"; mkdir -p "$LOGS"
 TMP="$LOGS/episodes"
-pids=()
-stop_nodes() {
-  for pid in "${pids[@]}"; do kill -INT "$pid" 2>/dev/null || true; done
-  for pid in "${pids[@]}"; do
-    for _ in $(seq 100); do kill -0 "$pid" 2>/dev/null || break; sleep 0.1; done
-    kill -KILL "$pid" 2>/dev/null || true
-  done
-  pids=()
-}
-trap stop_nodes EXIT
-start() {  # start <package> <executable> <parameters...>
-  local package=$1 executable=$2; shift 2
-  ros2 run "$package" "$executable" --ros-args "$@" >"$LOGS/$executable.log" 2>&1 &
-  pids+=($!)
-  echo "[golden] started $package/$executable (log: runs/golden_bags/$executable.log)"
-}
+# shellcheck source=/dev/null
+. "$ROOT/scripts/cell.sh"
 start actaim2_sim sim_node -p robot:=$ROBOT -p rig:=azure_kinect -p render_path:=sapien -p camera_rate:=1.0 \
   -p category:=three_drawer_shelf -p instance:=0 -p seed:=$SEED
 start actaim2_control control_node -p robot:=$ROBOT
 start actaim2_policy bag_recorder -p use_sim_time:=true -p output:="$TMP" -p split_by_episode:=true -p compression:=zstd \
   -p discovery_period:=0.2 -p summary_file:="$LOGS/recorder_summary.json"
-for _ in $(seq 600); do  # the recorder subscribes once sim_node publishes (SAPIEN's first picture takes a while)
-  grep -q "/points2 \[" "$LOGS/bag_recorder.log" && break
-  sleep 0.2
-done
-grep -q "/points2 \[" "$LOGS/bag_recorder.log" || { echo "[golden] the recorder never saw /points2"; exit 1; }
+wait_for_clouds
 ros2 run actaim2_control scripted_teleop --ros-args -p robot:=$ROBOT -p episodes:=2 -p seed:=$SEED \
   -p category:=three_drawer_shelf -p instance:=0 -p dof_fraction:=0.5 -p others_fraction:=0.0 \
   -p 'modes:=[pull, push]' -p 'joints:=[drawer_2_joint, drawer_1_joint]' 2>&1 | tee "$LOGS/scripted_teleop.log"
