@@ -16,7 +16,14 @@ and exits with code 1.
 
 With ``split_by_episode`` every START on the episode topic opens a new bag
 ``<output>/episode_<n>`` and the matching END closes it; latched topics (/tf_static) are
-repeated at the start of each bag so every episode replays on its own.
+repeated at the start of each bag so every episode replays on its own. Topics reach the
+recorder in no guaranteed order: the INIT keypose control_node publishes right after START was
+seen arriving 21 ms after it in one episode and just before it in another (then lost between
+bags). So the messages received between END and START are held, the last ``start_grace``
+seconds of receive time (node clock) up to ``start_grace_bytes``, and START's bag begins with
+those received at most ``start_grace`` before START, each written with its receive time: a bag's
+first messages may precede its START by up to ``start_grace``. Readers keep what is stamped
+at or after START (``actaim2 bag2dataset``); the rest is counted as outside episodes.
 """
 from __future__ import annotations
 
@@ -56,6 +63,10 @@ PARAMETERS = {
     "max_bag_duration": (0.0, "s: start a new storage file when the current one spans this long; 0 = never"),
     "split_by_episode": (False, "one bag per episode: START on episode_topic opens it, END closes it"),
     "episode_topic": ("/episode", "actaim2_msgs/EpisodeEvent topic that delimits episodes"),
+    "start_grace": (0.5, "s: split_by_episode: messages received at most this long before START go into its bag "
+                         "(topics arrive in no fixed order); earlier ones between END and START are not recorded"),
+    "start_grace_bytes": (32 * 2**20, "bytes: split_by_episode: messages held between END and START for start_grace at most "
+                                      "(beyond, the oldest are given up)"),
     "queue_limit": (256 * 2**20, "bytes: messages waiting for the writer thread at most; beyond, new ones are dropped and counted"),
     "best_effort_depth": (10, "history depth of best-effort subscriptions (reliable ones keep all)"),
     "discovery_period": (0.5, "s between two looks at the graph for requested topics that have no subscription yet"),
@@ -92,7 +103,9 @@ class BagRecorder(Node):
         self._definitions = MessageDefinitions(install_prefixes())
         self._subscribed: dict[str, object] = {}
         self._refused: set[str] = set()  # topics reported as unrecordable (reported once)
-        self._recorder = Recorder(self._make_writer, int(p["queue_limit"]), on_error=self._on_write_error)
+        self._recorder = Recorder(self._make_writer, int(p["queue_limit"]), on_error=self._on_write_error,
+                                  start_grace_ns=int(float(p["start_grace"]) * 1e9),
+                                  start_grace_bytes=int(p["start_grace_bytes"]))
         if not self._episodes:
             self._recorder.start_bag(self._output.name, self.get_clock().now().nanoseconds)
         self.create_timer(float(p["discovery_period"]), self._discover)

@@ -9,19 +9,21 @@ import time
 import numpy as np
 import pytest
 import yaml
-from actaim2_msgs.msg import EpisodeEvent
+from actaim2_msgs.msg import EpisodeEvent, Keypose
 from bagtools import TYPESTORE
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import JointState, PointCloud2
+from std_msgs.msg import Header
 from tf2_msgs.msg import TFMessage
 
 from actaim2_perception.transforms import TF_STATIC_QOS, matrix_to_transform
 from harness import wait_for
 
 EPISODE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+START_GRACE = 0.5  # s: bag_recorder's default start_grace
 
 
 def read(path):
@@ -30,6 +32,11 @@ def read(path):
         for connection, _, raw in reader.messages():
             out.setdefault(connection.topic, []).append(reader.deserialize(raw, connection.msgtype))
     return out
+
+
+def log_times(path, topic) -> list[int]:
+    with AnyReader([path], default_typestore=TYPESTORE) as reader:
+        return [timestamp for connection, timestamp, _ in reader.messages() if connection.topic == topic]
 
 
 def topics_of(path) -> dict:
@@ -103,16 +110,17 @@ def test_sigterm_leaves_a_readable_split_sqlite3_bag(ros_node, start_node, tmp_p
     assert [m.position[0] for m in read(tmp_path / "bag")["/joint_states"]] == list(range(200))
 
 
-def test_one_bag_per_episode_with_its_own_tf_static(ros_node, start_node, tmp_path):
+def test_one_bag_per_episode_with_its_own_tf_static_and_the_keypose_received_just_before_start(ros_node, start_node, tmp_path):
     tf_pub = ros_node.create_publisher(TFMessage, "/tf_static", TF_STATIC_QOS)
     tf_pub.publish(TFMessage(transforms=[matrix_to_transform(np.eye(4), "world", "panda_link0")]))
     js_pub = ros_node.create_publisher(JointState, "/joint_states", 10)
+    keypose_pub = ros_node.create_publisher(Keypose, "/keypose", QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
     episode_pub = ros_node.create_publisher(EpisodeEvent, "/episode", EPISODE_QOS)
     recorder = start_node("actaim2_policy", "bag_recorder", {
         "output": str(tmp_path / "episodes"), "split_by_episode": True, "discovery_period": 0.2,
     })
-    wait_subscribed(recorder, "/tf_static", "/joint_states", "/episode")
-    assert wait_for(lambda: js_pub.get_subscription_count() and episode_pub.get_subscription_count(), 10.0)
+    wait_subscribed(recorder, "/tf_static", "/joint_states", "/keypose", "/episode")
+    assert wait_for(lambda: all(p.get_subscription_count() for p in (js_pub, keypose_pub, episode_pub)), 10.0)
 
     def joint_states(n, offset):
         for i in range(n):
@@ -122,7 +130,13 @@ def test_one_bag_per_episode_with_its_own_tf_static(ros_node, start_node, tmp_pa
 
     joint_states(5, 1000)  # before any episode: not recorded
     for episode, frames in ((1, 20), (2, 10)):
-        episode_pub.publish(EpisodeEvent(episode=episode, event=EpisodeEvent.START, object_id="drawer/0"))
+        time.sleep(START_GRACE)  # what came before was received longer than the grace window before START
+        # the INIT keypose reaches the recorder before START, as in runs/teleop's episode 48; stamped as START
+        stamp = ros_node.get_clock().now().to_msg()
+        keypose_pub.publish(Keypose(header=Header(stamp=stamp, frame_id="world"), phase=Keypose.PHASE_INIT))
+        time.sleep(0.2)
+        episode_pub.publish(EpisodeEvent(header=Header(stamp=stamp), episode=episode, event=EpisodeEvent.START,
+                                         object_id="drawer/0"))
         time.sleep(0.3)
         joint_states(frames, 100 * episode)
         episode_pub.publish(EpisodeEvent(episode=episode, event=EpisodeEvent.END, success=True))
@@ -131,9 +145,15 @@ def test_one_bag_per_episode_with_its_own_tf_static(ros_node, start_node, tmp_pa
     assert recorder.stop() == 0, recorder.output()
 
     for episode, frames in ((1, 20), (2, 10)):
-        messages = read(tmp_path / "episodes" / f"episode_{episode:04d}")
+        bag = tmp_path / "episodes" / f"episode_{episode:04d}"
+        messages = read(bag)
         assert [m.position[0] for m in messages["/joint_states"]] == [100.0 * episode + i for i in range(frames)]
         assert [(e.episode, e.event) for e in messages["/episode"]] == [(episode, EpisodeEvent.START), (episode, EpisodeEvent.END)]
+        assert [k.phase for k in messages["/keypose"]] == [Keypose.PHASE_INIT]
+        assert messages["/keypose"][0].header.stamp == messages["/episode"][0].header.stamp
+        (keypose_ns,), start_ns = log_times(bag, "/keypose"), log_times(bag, "/episode")[0]
+        assert start_ns - START_GRACE * 1e9 <= keypose_ns < start_ns  # received before START, written with its receive time
+        assert log_times(bag, "/tf_static")[0] == keypose_ns  # the latched topics open the bag
         assert messages["/tf_static"][0].transforms[0].child_frame_id == "panda_link0"
     assert sorted(p.name for p in (tmp_path / "episodes").iterdir()) == ["episode_0001", "episode_0002"]
     assert "outside episodes 15" in recorder.output()

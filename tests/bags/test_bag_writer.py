@@ -188,3 +188,35 @@ def test_episode_bags_each_carry_the_latched_topics(tmp_path):
         assert tf.transforms[0].child_frame_id == "camera_base" and stamp < messages["/joint_states"][0][0]
     assert summary.topics["/joint_states"].outside_bag == 1 and summary.topics["/joint_states"].recorded == 8
     assert summary.topics["/tf_static"].recorded == 2
+
+
+def test_messages_received_within_the_grace_window_before_start_open_its_bag_with_their_receive_times(tmp_path):
+    grace, ms = 500 * 10**6, 10**6
+    recorder = Recorder(lambda name: BagWriter(tmp_path / name), start_grace_ns=grace,
+                        start_grace_bytes=2 * len(cloud(0)) + len(joint_state(0)))
+    recorder.add_topic(spec("/tf_static", "tf2_msgs/msg/TFMessage", latched=True), reliable=True, latched=True)
+    recorder.add_topic(spec("/joint_states", "sensor_msgs/msg/JointState"), reliable=True, latched=False)
+    recorder.add_topic(spec("/points2", "sensor_msgs/msg/PointCloud2", reliable=False), reliable=False, latched=False)
+    recorder.put("/tf_static", T0, tf_static("camera_base"))
+    start = T0 + 1000 * ms
+    recorder.put("/joint_states", start - 600 * ms, joint_state(1))  # beyond the window: outside
+    for i, before in ((1, 400), (2, 300), (3, 200)):  # three clouds in the window, two fit in the bytes: the oldest goes
+        recorder.put("/points2", start - before * ms, cloud(i))
+    recorder.put("/joint_states", start - 20 * ms, joint_state(2))  # published after START, received before it
+    recorder.start_bag("episode_0001", start)
+    recorder.put("/joint_states", start + 10 * ms, joint_state(3))
+    recorder.end_bag()
+    recorder.put("/joint_states", start + 600 * ms, joint_state(4))  # held, no START follows: outside
+    summary = recorder.stop()
+
+    messages = read_anyreader(tmp_path / "episode_0001")
+    assert [(t - start) // ms for t, _ in messages["/joint_states"]] == [-20, 10]
+    assert [msg.position[0] for _, msg in messages["/joint_states"]] == [2.0, 3.0]
+    assert [((t - start) // ms, msg.header.stamp.sec) for t, msg in messages["/points2"]] == [(-300, 2), (-200, 3)]
+    assert [(t - start) // ms for t, _ in messages["/tf_static"]] == [-300]  # the bag's first message
+    info = yaml.safe_load((tmp_path / "episode_0001" / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["starting_time"]["nanoseconds_since_epoch"] == start - 300 * ms
+    assert len(read_mcap_package(tmp_path / "episode_0001")["/points2"]) == 2
+    counts = summary.topics
+    assert (counts["/joint_states"].outside_bag, counts["/joint_states"].recorded) == (2, 2)
+    assert (counts["/points2"].outside_bag, counts["/points2"].recorded) == (1, 2)

@@ -7,16 +7,28 @@ writing 120 MB/s of clouds in the same thread would stall it. lz4, zstd and file
 the GIL, so the executor thread keeps receiving while the writer works.
 
 What happens to each message is counted per topic: ``received`` by :meth:`Recorder.put`,
-``dropped`` when the queue was full, ``outside_bag`` when no bag was open (episode mode
-between END and START), ``recorded`` = what the bags hold on disk. DDS losses (best-effort
-samples that never arrived) are counted by the ROS adapter and added via :meth:`add_lost`.
+``dropped`` when the queue was full, ``outside_bag`` when no bag took it (episode mode: received
+between END and START, earlier than the grace window below), ``recorded`` = what the bags hold
+on disk. DDS losses (best-effort samples that never arrived) are counted by the ROS adapter and
+added via :meth:`add_lost`.
+
+The start grace window: messages of different topics reach the recorder in no guaranteed order,
+so a message published right after START (the INIT keypose control_node publishes once the
+teleoperator has sent START and the INIT goal) can be received just before it. While no bag is
+open, messages are therefore held, the last ``start_grace_ns`` of receive time and at most
+``start_grace_bytes`` (the oldest go first); :meth:`start_bag` writes those received at most
+``start_grace_ns`` before its timestamp into the new bag, each with its receive time, so a bag's
+messages begin at most the window before its START. The rest are counted ``outside_bag``.
+Readers tell by header stamp which of them belong to the episode (actaim2.finetune.bag_episodes:
+stamped at or after START).
 
 Bags are opened and closed through the same queue as the messages (:meth:`start_bag`,
 :meth:`end_bag`), so an episode boundary falls exactly between the messages that came before
 and after it. Messages of latched (transient-local) topics other than the trigger are
-remembered and written at the start of every later bag: each episode bag then carries its own
-/tf_static. A write error (full disk) ends the recording: the bag keeps what is complete on
-disk (BagWriter.recover), ``error`` says why, ``on_error`` is called from the writer thread.
+remembered and written at the start of every later bag, stamped with its first message's
+time: each episode bag then carries its own /tf_static. A write error (full disk) ends the
+recording: the bag keeps what is complete on disk (BagWriter.recover), ``error`` says why,
+``on_error`` is called from the writer thread.
 """
 from __future__ import annotations
 
@@ -89,13 +101,20 @@ class Recorder:
         make_writer: Callable[[str], BagWriter],
         queue_limit_bytes: int = 256 * 2**20,
         on_error: Callable[[str], None] | None = None,
+        start_grace_ns: int = 0,
+        start_grace_bytes: int = 0,
     ) -> None:
-        """``make_writer(name)`` opens a new bag (name as given to :meth:`start_bag`)."""
+        """``make_writer(name)`` opens a new bag (name as given to :meth:`start_bag`);
+        ``start_grace_ns`` / ``start_grace_bytes``: the start grace window (module docstring;
+        0 bytes holds nothing)."""
         self._make_writer = make_writer
         self._limit = queue_limit_bytes
         self._on_error = on_error
+        self._grace_ns, self._grace_bytes = start_grace_ns, start_grace_bytes
         self._queue: deque[tuple] = deque()
         self._queued_bytes = 0
+        self._held: deque[tuple[str, int, bytes]] = deque()  # (topic, timestamp, data) received while no bag is open
+        self._held_bytes = 0
         self._cond = threading.Condition()
         self._counts: dict[str, TopicCounts] = {}
         self._topics: dict[str, tuple[TopicSpec, bool]] = {}  # name -> (spec, latched); writer thread
@@ -120,10 +139,16 @@ class Recorder:
             self._push(("topic", spec, latched))
 
     def start_bag(self, name: str, timestamp: int) -> None:
-        """Close the open bag (if any) and open a new one; latched messages are written first."""
+        """Close the open bag (if any) and open a new one: the latched messages first, then the
+        held ones received at most the grace window before ``timestamp``."""
         with self._cond:
             self._bag_open = self.error is None
-            self._push(("start", name, timestamp))
+            while self._held and self._held[0][1] < timestamp - self._grace_ns:
+                self._release_oldest()
+            taken, self._held, self._held_bytes = self._held, deque(), 0
+            self._push(("start", name, min([timestamp] + [stamp for _, stamp, _ in taken])))
+            for topic, stamp, data in taken:
+                self._enqueue(topic, stamp, data)
 
     def end_bag(self) -> None:
         with self._cond:
@@ -131,7 +156,8 @@ class Recorder:
             self._push(("end",))
 
     def put(self, topic: str, timestamp: int, data: bytes) -> bool:
-        """Queue one message; False when it was not queued (counted as dropped or outside a bag)."""
+        """Queue one message; False when it was not queued: dropped (queue full), or no bag is open
+        (held for the next START's grace window, else counted outside a bag)."""
         with self._cond:
             counts = self._counts[topic]
             counts.received += 1
@@ -139,14 +165,9 @@ class Recorder:
             if self.error is not None:
                 return False
             if not self._bag_open and topic not in self._latched_topics:
-                counts.outside_bag += 1
+                self._hold(topic, timestamp, data)
                 return False
-            if self._queued_bytes + len(data) > self._limit:
-                counts.dropped += 1
-                return False
-            self._queued_bytes += len(data)
-            self._push(("msg", topic, timestamp, data))
-            return True
+            return self._enqueue(topic, timestamp, data)
 
     def add_lost(self, topic: str, count: int) -> None:
         with self._cond:
@@ -155,6 +176,8 @@ class Recorder:
     def stop(self) -> RecordSummary:
         """Write everything queued, close the bag, and say what was recorded."""
         with self._cond:
+            while self._held:
+                self._release_oldest()
             self._push(("stop",))
         self._thread.join()
         counts = self.counts()
@@ -176,6 +199,27 @@ class Recorder:
     def _push(self, item: tuple) -> None:
         self._queue.append(item)
         self._cond.notify()
+
+    def _enqueue(self, topic: str, timestamp: int, data: bytes) -> bool:
+        if self._queued_bytes + len(data) > self._limit:
+            self._counts[topic].dropped += 1
+            return False
+        self._queued_bytes += len(data)
+        self._push(("msg", topic, timestamp, data))
+        return True
+
+    def _hold(self, topic: str, timestamp: int, data: bytes) -> None:
+        """Keep a message received while no bag is open for the next START's grace window."""
+        self._held.append((topic, timestamp, data))
+        self._held_bytes += len(data)
+        while self._held and (self._held[0][1] < timestamp - self._grace_ns or self._held_bytes > self._grace_bytes):
+            self._release_oldest()
+
+    def _release_oldest(self) -> None:
+        """Give up the oldest held message: it is outside any bag."""
+        topic, _, data = self._held.popleft()
+        self._held_bytes -= len(data)
+        self._counts[topic].outside_bag += 1
 
     # --- writer thread -------------------------------------------------------------------
     def _run(self) -> None:

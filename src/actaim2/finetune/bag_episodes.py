@@ -8,7 +8,7 @@ same episode number, in recording order) gives
 * the keyposes: the last marking of each phase INIT, REACH, GRASP, MANIPULATE (a keypose that
   failed and was marked again appears twice: the later one counts), in this order;
 * the observations, one cloud per rig camera each, chosen by header stamp among the clouds
-  recorded during the episode and stamped at or after START (earlier ones may show the scene
+  of the episode (below) stamped at or after START (earlier ones may show the scene
   before its reset): ``init`` the first, ``o<i>`` the latest stamped at or before keypose i
   (O_i is what was seen when a_i was marked, before it executed), ``final`` the latest stamped
   at or before END. INIT is often marked at START itself, before the first cloud of a bag split
@@ -17,9 +17,16 @@ same episode number, in recording order) gives
   removed from the views with its joint positions at that stamp);
 * the operator's verdict (END's ``success``), the mode label in use at END and the object id.
 
+What an episode holds: the keyposes and clouds recorded between its START and END, and those
+recorded between the previous END (or the bag's beginning) and its START that are stamped at or
+after START. Topics reach the recorder in no fixed order, so the INIT keypose published right
+after START can be received (and logged) just before it; bag_recorder's episode bags therefore
+begin up to its ``start_grace`` before START, and the stamp tells the new episode's messages
+from those of the reset scene before it.
+
 Stamps, not recording order, decide: a keypose is recorded as soon as it is sent, the cloud the
 operator saw may reach the recorder after it (a 3 MB message), and a bag split by episode starts
-at START. All header stamps are on one clock (sim time under ``use_sim_time``).
+at (or just before) START. All header stamps are on one clock (sim time under ``use_sim_time``).
 
 The bag is read twice: first everything but the clouds' points (stamps, keyposes, joint states,
 transforms), then only the chosen clouds are decoded, an episode being handed on as soon as its
@@ -172,6 +179,7 @@ def _first_pass(path: Path, source: BagSource, topics: set[str], cameras: dict[s
     """(episodes whose keyposes and clouds are complete, with their clouds chosen; the first joint
     state's stamp); fills tf and joints."""
     label, current, done, first_joints_ns = "", None, [], None
+    waiting: list[tuple[str, int, int, Keypose | None]] = []  # keyposes and clouds recorded while no episode is open
     for message in source.messages(topics):
         msg = source.deserialize(message)
         topic = message.topic
@@ -189,26 +197,38 @@ def _first_pass(path: Path, source: BagSource, topics: set[str], cameras: dict[s
                 if current is not None:
                     report(f"{path}: episode {current.episode}: no END before the START of episode {msg.episode}; skipped")
                 current = _Episode(int(msg.episode), str(msg.object_id), _stamp(msg.header))
+                for item in waiting:
+                    if item[2] >= current.start_ns:
+                        _take(path, current, item, report)
+                waiting.clear()
             elif msg.event == EPISODE_END:
                 if current is None or current.episode != int(msg.episode):
                     report(f"{path}: END of episode {msg.episode} without its START; skipped")
                 elif _close(path, current, msg, label, cameras, report):
                     done.append(current)
                 current = None
-        elif current is None:
-            continue  # clouds and keyposes outside an episode are not part of a demonstration
-        elif topic == "/keypose":
-            keypose = _keypose(msg)
-            if not 0 <= keypose.phase < len(PHASE_NAMES):
-                report(f"{path}: episode {current.episode}: keypose of unknown phase {keypose.phase} ignored")
-                continue
-            current.marked[keypose.phase] = (current.markings, keypose, _stamp(msg.header))
-            current.markings += 1
-        else:
-            current.clouds.append((topic, message.index, _stamp(msg.header)))
+                waiting.clear()
+        else:  # a keypose or a cloud
+            item = (topic, message.index, _stamp(msg.header), _keypose(msg) if topic == "/keypose" else None)
+            if current is None:
+                waiting.append(item)  # part of the next episode if stamped at or after its START
+            else:
+                _take(path, current, item, report)
     if current is not None:
         report(f"{path}: episode {current.episode}: the bag ends before its END; skipped")
     return done, first_joints_ns if first_joints_ns is not None else 0
+
+
+def _take(path: Path, ep: _Episode, item: tuple[str, int, int, Keypose | None], report: Callable[[str], None]) -> None:
+    """Add a keypose marking or a cloud (topic, index, header stamp, keypose or None) to the episode."""
+    topic, index, stamp, keypose = item
+    if keypose is None:
+        ep.clouds.append((topic, index, stamp))
+    elif not 0 <= keypose.phase < len(PHASE_NAMES):
+        report(f"{path}: episode {ep.episode}: keypose of unknown phase {keypose.phase} ignored")
+    else:
+        ep.marked[keypose.phase] = (ep.markings, keypose, stamp)
+        ep.markings += 1
 
 
 def _close(path: Path, ep: _Episode, end, label: str, cameras: dict[str, str], report: Callable[[str], None]) -> bool:
