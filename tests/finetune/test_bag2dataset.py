@@ -14,6 +14,7 @@ from actaim2.data.encoder import ImageEncoder
 from actaim2.data.labelling import EMBEDDINGS_FILE, encoder_digest
 from actaim2.data.storage import DatasetReader
 from actaim2.data.trajectory import CameraImage
+from actaim2.finetune.bag2dataset import fill_robot_pixels
 from actaim2.perception.config import capture_part, load_perception_config
 from actaim2.sim.cameras import make_rig
 from actaim2.sim.env import WORKSPACE_CENTER
@@ -51,8 +52,8 @@ def test_keyframes_are_the_marked_keyposes_with_the_clouds_taken_before_them(con
 
 
 def test_task_embeddings_come_from_the_first_and_last_observations_with_the_robot_removed(converted):
-    """z = E(O_init) - E(O_final), robot removed by the self-filter, against the same pictures with the
-    robot's pixels removed as the renderer's segmentation says."""
+    """z = E(O_init) - E(O_final), robot removed by the self-filter and its pixels filled from the other
+    observation, against the same pictures with the robot's pixels as the renderer's segmentation says."""
     reader = DatasetReader(converted.dataset)
     encoder = ImageEncoder.load(converted.recording.encoder)
     with np.load(converted.dataset / EMBEDDINGS_FILE) as f:
@@ -60,26 +61,50 @@ def test_task_embeddings_come_from_the_first_and_last_observations_with_the_robo
         assert str(f["encoder_digest"]) == encoder_digest(converted.recording.encoder)
     for entry, demo in zip(reader.entries, converted.recording.demos):
         trajectory = reader.read(entry)
-        truth, visible = {}, {}
+        truth, visible, robots = {}, {}, {}
         for name in ("init", "final"):
             _, xyz, rgb, robot, _ = demo.observations[name]
             picture = trajectory.observations[name][CAMERA]
             depth = np.nan_to_num(xyz[..., 2])
             seen_robot = robot & (depth > 0)
-            removed = (picture.depth == 0) & (depth > 0)
-            assert (seen_robot & ~removed).sum() <= 0.05 * seen_robot.sum()  # flying pixels at the silhouette survive
-            assert (removed & ~robot).sum() <= 0.01 * ((depth > 0) & ~robot).sum()
+            changed = ~np.isclose(picture.depth, depth, rtol=0.0, atol=0.0005 + 1e-6)  # removed, maybe filled
+            assert (seen_robot & ~changed).sum() <= 0.05 * seen_robot.sum()  # flying pixels at the silhouette survive
+            assert (changed & ~robot).sum() <= 0.01 * ((depth > 0) & ~robot).sum()
             hidden_rgb = rgb.copy()
             hidden_rgb[robot] = 0
-            truth[name] = {CAMERA: CameraImage(hidden_rgb, np.where(robot, 0.0, depth).astype(np.float32), picture.K,
-                                               picture.T_world_optical)}
+            truth[name] = CameraImage(hidden_rgb, np.where(robot, 0.0, depth).astype(np.float32), picture.K,
+                                      picture.T_world_optical)
             visible[name] = {CAMERA: CameraImage(rgb, depth.astype(np.float32), picture.K, picture.T_world_optical)}
-        expected = np.subtract(*encoder.encode([truth["init"], truth["final"]]))
+            robots[name] = robot
+        truth_init, truth_final = fill_robot_pixels(truth["init"], truth["final"], robots["init"], robots["final"])
+        expected = np.subtract(*encoder.encode([{CAMERA: truth_init}, {CAMERA: truth_final}]))
         with_robot = np.subtract(*encoder.encode([visible["init"], visible["final"]]))
         ours = z[entry["id"]]
         cosine = ours @ expected / np.linalg.norm(ours) / np.linalg.norm(expected)
         assert cosine > 0.95, cosine
         assert np.linalg.norm(ours - expected) < np.linalg.norm(with_robot - expected)
+
+
+def test_robot_pixels_are_filled_from_the_other_observation_where_it_saw_the_scene():
+    K, T = np.eye(3), np.eye(4)
+    depth_init, depth_final = np.full((4, 5), 1.0, np.float32), np.full((4, 5), 2.0, np.float32)
+    depth_final[3, 4] = 0.0  # no return in O_final
+    rgb_init, rgb_final = np.full((4, 5, 3), 10, np.uint8), np.full((4, 5, 3), 20, np.uint8)
+    arm_init, arm_final = np.zeros((4, 5), bool), np.zeros((4, 5), bool)
+    arm_init[0, :2] = True  # the arm at START
+    arm_final[1:, 3:] = True  # at END, elsewhere
+    arm_final[0, 0] = True  # and one pixel where it stood at START too
+    for mask, depth, rgb in ((arm_init, depth_init, rgb_init), (arm_final, depth_final, rgb_final)):
+        depth[mask], rgb[mask] = 0.0, 0
+    init, final = fill_robot_pixels(CameraImage(rgb_init, depth_init, K, T), CameraImage(rgb_final, depth_final, K, T),
+                                    arm_init, arm_final)
+    assert init.depth[0, 1] == 2.0 and (init.rgb[0, 1] == 20).all()  # O_final saw the scene there
+    assert init.depth[0, 0] == 0.0 and (init.rgb[0, 0] == 0).all()  # the arm in both: stays empty
+    assert final.depth[1, 3] == 1.0 and (final.rgb[2, 4] == 10).all()
+    assert final.depth[3, 4] == 1.0  # removed by the filter, so filled (the other saw it)
+    untouched = ~(arm_init | arm_final)
+    assert (init.depth[untouched] == 1.0).all() and (final.depth[untouched & (depth_final > 0)] == 2.0).all()
+    assert depth_init[0, 1] == 0.0  # the inputs are not modified
 
 
 def test_dataset_json_records_the_capture_configuration_and_the_encoder(converted):
