@@ -190,13 +190,18 @@ def object_reaches(entries: list[dict], motions: dict[str, list[PartMotion]], co
     return out
 
 
+def _reaches_or_unknown(parts_per_trajectory: list[list[PartMotion]], reaches: list[list[float]] | None) -> list[list[float]]:
+    """``reaches`` as given, or every reach unknown (0) when None: a lone trajectory has none."""
+    return reaches if reaches is not None else [[0.0] * len(parts) for parts in parts_per_trajectory]
+
+
 def success_scores(parts_per_trajectory: list[list[PartMotion]], model: SuccessModel,
                    reaches: list[list[float]] | None = None) -> np.ndarray:
     """P(success) of each trajectory: the most likely of its moved parts (0 when nothing moved).
 
     ``reaches`` as :func:`object_reaches` gives them; None: every reach unknown (a lone trajectory).
     """
-    reaches = reaches if reaches is not None else [[0.0] * len(parts) for parts in parts_per_trajectory]
+    reaches = _reaches_or_unknown(parts_per_trajectory, reaches)
     return np.array([max((model.probability(motion_features(p, r)) for p, r in zip(parts, rs)), default=0.0)
                      for parts, rs in zip(parts_per_trajectory, reaches)])
 
@@ -211,7 +216,7 @@ def calibrate(parts_per_trajectory: list[list[PartMotion]], gt: np.ndarray,
     accurate one over all the given trajectories. None when fewer than ``MIN_CALIBRATION``
     parts of either outcome are left (a handful of trajectories calibrates nothing).
     """
-    reaches = reaches if reaches is not None else [[0.0] * len(parts) for parts in parts_per_trajectory]
+    reaches = _reaches_or_unknown(parts_per_trajectory, reaches)
     rows, outcomes = [], []
     for parts, rs, success in zip(parts_per_trajectory, reaches, gt):
         if len(parts) == 1 or (parts and not success):
@@ -225,15 +230,16 @@ def calibrate(parts_per_trajectory: list[list[PartMotion]], gt: np.ndarray,
 
 
 def visual_labels(entries: list[dict], motions: dict[str, list[PartMotion]], calibration_split: str = TRAIN,
-                  reach_config: ReachConfig = ReachConfig()) -> tuple[np.ndarray, SuccessModel, bool]:
+                  reaches: list[list[float]] | None = None) -> tuple[np.ndarray, SuccessModel, bool]:
     """(P(success) per entry, the model, whether it was calibrated on ``calibration_split``).
 
-    Reaches are read off the given entries, per object. Without enough moved trajectories of
-    both outcomes in the calibration split the model is :data:`DEFAULT_MODEL`, the calibration
-    measured on the collection in docs/data_collection.md.
+    ``reaches``: :func:`object_reaches` of the entries (None: read off them here with the default
+    :class:`ReachConfig`). Without enough moved trajectories of both outcomes in the calibration
+    split the model is :data:`DEFAULT_MODEL`, the calibration measured on the collection in
+    docs/data_collection.md.
     """
     parts = [motions[e["id"]] for e in entries]
-    reaches = object_reaches(entries, motions, reach_config)
+    reaches = reaches if reaches is not None else object_reaches(entries, motions)
     calib = [k for k, e in enumerate(entries) if e["split"] == calibration_split]
     if not calib:
         raise ValueError(f"no trajectories in calibration split {calibration_split!r} to calibrate the success label on")
@@ -260,7 +266,8 @@ def label_dataset(root: str | Path, encoder_path: str | Path, calibration_split:
     encoder = ImageEncoder.load(encoder_path)
     z = embed_dataset(reader, encoder, encoder_digest(encoder_path), show_progress)
     entries = reader.entries
-    scores, model, calibrated = visual_labels(entries, motions, calibration_split, reach_config)
+    reaches = object_reaches(entries, motions, reach_config)
+    scores, model, calibrated = visual_labels(entries, motions, calibration_split, reaches)
     labels = scores > model.threshold
     gt = np.array([e["gt_success"] for e in entries], dtype=bool)
     splits = np.array([e["split"] for e in entries])
@@ -289,7 +296,7 @@ def label_dataset(root: str | Path, encoder_path: str | Path, calibration_split:
     alternatives["anything_moved"] = {"description": "some part moved (no calibration)",
                                       **_report(np.array([bool(ps) for ps in parts]), gt, splits, calib)}
     categories = np.array([e["category"] for e in entries])
-    known = [r > 0 for rs in object_reaches(entries, motions, reach_config) for r in rs]
+    known = [r > 0 for rs in reaches for r in rs]
     report = {
         "method": "part motion (part_motion.py) + reach per part from its object's trajectories + logistic model (success.py), "
                   "P(success) > calibrated threshold",
