@@ -79,6 +79,7 @@ class RosExecutor:
         self._positions: dict[str, float] = {}
         self._velocities: dict[str, float] = {}
         self._received = -np.inf
+        self._stamp = float("nan")  # s (sim): header stamp of the newest /joint_states
         self.cancel_requested: Callable[[], bool] = lambda: False
 
     # -- state ----------------------------------------------------------------------------
@@ -88,6 +89,7 @@ class RosExecutor:
             if len(msg.velocity) == len(msg.name):
                 self._velocities.update(zip(msg.name, msg.velocity))
             self._received = time.monotonic()
+            self._stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
 
     def wait_for_joint_states(self, timeout: float) -> bool:
         return _wait(lambda: self._fresh_arm_state() is not None, timeout)
@@ -176,13 +178,20 @@ class RosExecutor:
             self._topic.publish(msg)
 
     def _stop(self) -> StepResult:
-        """Brake to a standstill within the full limits, replacing the running trajectory."""
+        """Brake to a standstill within the full limits, replacing the running trajectory.
+
+        The message names the sim-time stamp of the state the brake starts from, so that a client
+        can time the stop from the moment this node acted, whatever its own delivery delays.
+        """
         s = self._settings
         state = self.arm_state()
+        with self._lock:
+            braked_from = self._stamp
         stop = sample([self._stopper.stop(state, self._full_limits)], self._spec.arm_joints, s.sample_period)
         self.send(stop if len(stop) else _hold(self._spec, state.position))
         still = _wait(lambda: np.all(np.abs(self.arm_state().velocity) < s.stopped_velocity), stop.duration + s.settle_timeout)
-        return StepResult(False, "cancelled: arm stopped" if still else "cancelled: the arm did not come to rest")
+        outcome = "arm stopped" if still else "the arm did not come to rest"
+        return StepResult(False, f"cancelled: {outcome} (braking from /joint_states stamped {braked_from:.4f} s)")
 
     # -- gripper --------------------------------------------------------------------------
     def set_gripper(self, closed: bool) -> StepResult:
