@@ -184,9 +184,9 @@ class RosExecutor:
         can time the stop from the moment this node acted, whatever its own delivery delays.
         """
         s = self._settings
-        state = self.arm_state()
-        with self._lock:
+        with self._lock:  # read before the state: the stamp is never newer than the state braked from
             braked_from = self._stamp
+        state = self.arm_state()
         stop = sample([self._stopper.stop(state, self._full_limits)], self._spec.arm_joints, s.sample_period)
         self.send(stop if len(stop) else _hold(self._spec, state.position))
         still = _wait(lambda: np.all(np.abs(self.arm_state().velocity) < s.stopped_velocity), stop.duration + s.settle_timeout)
