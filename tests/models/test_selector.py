@@ -120,3 +120,36 @@ def test_z_standardisation_does_not_blow_up_dimensions_constant_in_training():
     unseen = torch.zeros(1, 12)
     unseen[0, 0] = 1.25  # the dead feature moves by 1.0 on an unseen object
     assert 0.0 < model.standardise(unseen)[0, 0] <= 1.0 / float(spread.median()) + 1e-4  # was 1e6 with a 1e-6 floor
+
+
+@pytest.mark.parametrize("kind", ["cgmvae", "cvae", "vqvae"])
+def test_eps_as_principal_components_is_whitened_on_training_z_and_survives_a_checkpoint(kind, tmp_path):
+    """eps_dim > 0: eps = the first principal components of standardised z, unit variance and uncorrelated on the
+    training set, the leading one along z's main direction of variation; the basis is saved with the weights."""
+    from actaim2.train.checkpoint import load_policy, policy_tensors, save
+
+    torch.manual_seed(0)
+    config = SelectorConfig(kind=kind, **{**SMALL, "eps_dim": 3})
+    model = build_selector(config)
+    direction = torch.nn.functional.normalize(torch.randn(12), dim=0)
+    t = torch.randn(200)
+    z = torch.randn(200, 12) * 0.1 + t[:, None] * 3.0 * direction  # one strong direction of variation, t along it
+    model.fit_statistics(torch.rand(200, 5, 8, 16, 16), z)
+    eps = model.standardise(z)
+    assert eps.shape == (200, 3)
+    torch.testing.assert_close(torch.cov(eps.T), torch.eye(3), atol=1e-3, rtol=0)
+    assert abs(float(torch.corrcoef(torch.stack([eps[:, 0], t]))[0, 1])) > 0.99
+    sample = model.eval().sample(torch.rand(2, 5, 8, 16, 16), None, torch.Generator().manual_seed(1))
+    assert sample.eps.shape == (2, 3)
+
+    save(tmp_path / "policy", policy_tensors(model, None), {"selector_config": config.to_dict()})
+    loaded = load_policy(tmp_path / "policy").selector
+    torch.testing.assert_close(loaded.standardise(z), eps)
+
+
+def test_eps_dim_needs_more_training_trajectories_than_components():
+    model = build_selector(SelectorConfig(kind="cgmvae", **{**SMALL, "eps_dim": 3}))
+    with pytest.raises(ValueError, match="more than 3 training trajectories"):
+        model.fit_statistics(torch.rand(3, 5, 8, 16, 16), torch.randn(3, 12))
+    with pytest.raises(ValueError, match="not a multiple of z_tokens"):
+        SelectorConfig(kind="cgmvae", **{**SMALL, "eps_dim": 4})

@@ -44,7 +44,7 @@ def cluster_log_posterior(x: torch.Tensor, prior_mean: torch.Tensor, prior_logva
 
 @dataclass
 class CGMVAEOutput:
-    eps: torch.Tensor  # (B, z_dim) reconstruction of the true eps
+    eps: torch.Tensor  # (B, eps_size) reconstruction of the true eps
     x: torch.Tensor  # (B, Dx) sample of q(x | eps, O)
     x_mean: torch.Tensor
     x_logvar: torch.Tensor
@@ -54,7 +54,7 @@ class CGMVAEOutput:
     prior_logvar: torch.Tensor
     log_pi: torch.Tensor  # (K,) normalised
     log_qc: torch.Tensor  # (B, K) log q(c | x, y, O)
-    eps_generated: torch.Tensor  # (B, z_dim) decoded along the sampling path, c relaxed (Gumbel-softmax)
+    eps_generated: torch.Tensor  # (B, eps_size) decoded along the sampling path, c relaxed (Gumbel-softmax)
 
 
 class CGMVAE(ModeSelector):

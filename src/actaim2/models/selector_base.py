@@ -10,7 +10,13 @@ differ only in their latent; all of them
     (``eps_decoder.EpsDecoder``),
   * work in *standardised* z space: eps = (z - mean) / std with the training set's statistics
     (kept as buffers, so a checkpoint carries them). The action predictor is fed eps in that
-    space, both the true one (Goal-RVT, pretraining) and the sampled one,
+    space, both the true one (Goal-RVT, pretraining) and the sampled one. With ``eps_dim`` > 0,
+    eps is instead the whitened projection of that standardised z on its first ``eps_dim``
+    principal components (of the training set, a buffer too): z has 1920 values, unique to its
+    trajectory, and neither model learned to use them on a few hundred trajectories (the
+    predictor erred as much fed the true z as fed the selector's near-mean reconstruction),
+    while 16 components keep what tells an object's outcomes apart (nearest neighbour within an
+    object: the same outcome for 89 % of train_seen successes, 91 % with all 1920 values),
   * answer ``sample(views, cluster, generator) -> SampleResult``.
 """
 from __future__ import annotations
@@ -42,13 +48,22 @@ class SelectorConfig:
     decoder_layers: int = 4  # the paper's 4 self-attention layers
     decoder_heads: int = 4
     commitment: float = 0.25  # vqvae commitment weight (van den Oord et al.)
+    eps_dim: int = 0  # > 0: eps = whitened principal components of standardised z (module docstring); 0: eps = standardised z
     obs: ObsEncoderConfig = field(default_factory=ObsEncoderConfig)
 
     def __post_init__(self) -> None:
         if self.kind not in SELECTOR_KINDS:
             raise ValueError(f"selector kind must be one of {SELECTOR_KINDS}, got {self.kind!r}")
-        if self.z_dim % self.z_tokens:
-            raise ValueError(f"z_dim {self.z_dim} is not a multiple of z_tokens {self.z_tokens}")
+        if not 0 <= self.eps_dim <= self.z_dim:
+            raise ValueError(f"eps_dim must lie in 0..z_dim ({self.z_dim}), got {self.eps_dim}")
+        if self.eps_size % self.z_tokens:
+            raise ValueError(f"eps has {self.eps_size} values (z_dim {self.z_dim}, eps_dim {self.eps_dim}), "
+                             f"not a multiple of z_tokens {self.z_tokens}")
+
+    @property
+    def eps_size(self) -> int:
+        """Values in eps: what the decoder reconstructs and the action predictor reads."""
+        return self.eps_dim or self.z_dim
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -67,7 +82,7 @@ class SelectorConfig:
 
 @dataclass
 class SampleResult:
-    eps: torch.Tensor  # (B, z_dim) standardised task embedding, the action predictor's input
+    eps: torch.Tensor  # (B, eps_size) standardised task embedding, the action predictor's input
     cluster: torch.Tensor  # (B,) long; -1 for a selector without discrete modes (cvae)
     cluster_probabilities: torch.Tensor  # (B, K) the distribution the cluster was drawn from; (B, 0) for cvae
 
@@ -79,12 +94,13 @@ class ModeSelector(nn.Module, abc.ABC):
         super().__init__()
         self.config = config
         self.obs_encoder = ObsEncoder(config.obs)
-        self.decoder = EpsDecoder(config.latent_dim, config.obs.token_dim, config.z_dim, config.z_tokens,
+        self.decoder = EpsDecoder(config.latent_dim, config.obs.token_dim, config.eps_size, config.z_tokens,
                                   config.decoder_layers, config.decoder_heads)
         self.register_buffer("z_mean", torch.zeros(config.z_dim))
         self.register_buffer("z_std", torch.ones(config.z_dim))
+        self.register_buffer("eps_basis", torch.zeros(config.z_dim, config.eps_dim) if config.eps_dim else None)
         # Every selector's encoder q(. | eps, O) starts alike: eps and O embedded to one width (joint_embedding).
-        self.embed_eps = nn.Linear(config.z_dim, config.width)
+        self.embed_eps = nn.Linear(config.eps_size, config.width)
         self.embed_condition = nn.Linear(self.condition_dim, config.width)
 
     @property
@@ -112,10 +128,19 @@ class ModeSelector(nn.Module, abc.ABC):
             self.z_std.copy_(spread.clamp_min(float(spread.median().clamp_min(1e-6))))
         else:
             self.z_std.fill_(1.0)
+        if self.eps_basis is not None:
+            d = self.config.eps_dim
+            if len(z) <= d:
+                raise ValueError(f"eps_dim {d} principal components need more than {d} training trajectories, got {len(z)}")
+            centred = (z.float() - self.z_mean) / self.z_std
+            centred = centred - centred.mean(dim=0)
+            _, s, vh = torch.linalg.svd(centred, full_matrices=False)
+            self.eps_basis.copy_(vh[:d].T * (len(z) - 1) ** 0.5 / s[:d].clamp_min(1e-6))  # unit variance per component
 
     def standardise(self, z: torch.Tensor) -> torch.Tensor:
         """Raw task embedding z -> eps space."""
-        return (z.float() - self.z_mean) / self.z_std
+        eps = (z.float() - self.z_mean) / self.z_std
+        return eps if self.eps_basis is None else eps @ self.eps_basis
 
     def condition(self, views: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Per-view tokens (B, V, d) and their flattening (B, V * d)."""

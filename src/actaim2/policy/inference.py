@@ -83,15 +83,15 @@ class PolicyModel:
             raise PolicyLoadError(str(exc)) from exc
         model = cls(policy, checkpoint.paths(stem)[1].with_suffix(""), serving, target)
         if model.predictor is not None and model.selector is not None \
-                and model.predictor.config.embedding_dim != model.selector.config.z_dim:
-            raise PolicyLoadError(f"{stem}: the selector's eps has {model.selector.config.z_dim} values, "
+                and model.predictor.config.embedding_dim != model.selector.config.eps_size:
+            raise PolicyLoadError(f"{stem}: the selector's eps has {model.selector.config.eps_size} values, "
                                   f"the predictor reads {model.predictor.config.embedding_dim}")
         return model
 
     # -- what it serves ---------------------------------------------------------------------
     @property
     def embedding_dim(self) -> int:
-        return self.predictor.config.embedding_dim if self.predictor is not None else self.selector.config.z_dim
+        return self.predictor.config.embedding_dim if self.predictor is not None else self.selector.config.eps_size
 
     @property
     def clusters(self) -> int:

@@ -84,7 +84,8 @@ class Trainer:
         selector.update(z_dim=z_dim, obs={**selector["obs"], "views": n_views, "in_channels": channels})
         self.selector_config = type(config.selector).from_dict(selector)
         channel_names = perception["fields"].get("channels", CHANNELS)  # a record without them: the renderer's full set
-        self.predictor_config = PredictorConfig.from_json({**config.predictor, "embedding_dim": z_dim, "image_size": resolution,
+        self.predictor_config = PredictorConfig.from_json({**config.predictor, "embedding_dim": self.selector_config.eps_size,
+                                                           "image_size": resolution,
                                                            "views": n_views, "in_channels": channels,
                                                            "channel_names": channel_names})
         torch.manual_seed(config.seed)
@@ -118,6 +119,8 @@ class Trainer:
         elif policy.selector is not None:  # another selector kind: keep its input statistics only
             self.selector.z_mean.copy_(policy.selector.z_mean)
             self.selector.z_std.copy_(policy.selector.z_std)
+            if self.selector.eps_basis is not None:
+                self.selector.eps_basis.copy_(policy.selector.eps_basis)
             self.selector.obs_encoder.channel_mean.copy_(policy.selector.obs_encoder.channel_mean)
             self.selector.obs_encoder.channel_std.copy_(policy.selector.obs_encoder.channel_std)
         self.lineage["init_from"] = {"path": str(stem), "weights_sha256": policy.meta.get("weights_sha256"),

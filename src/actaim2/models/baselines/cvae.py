@@ -15,7 +15,7 @@ from actaim2.models.selector_base import ModeSelector, SampleResult, SelectorCon
 
 @dataclass
 class CVAEOutput:
-    eps: torch.Tensor  # (B, z_dim) reconstruction
+    eps: torch.Tensor  # (B, eps_size) reconstruction
     w_mean: torch.Tensor  # (B, latent_dim) of q(w | eps, O)
     w_logvar: torch.Tensor
 

@@ -19,7 +19,7 @@ from actaim2.models.selector_base import ModeSelector, SampleResult, SelectorCon
 
 @dataclass
 class VQVAEOutput:
-    eps: torch.Tensor  # (B, z_dim) reconstruction through the straight-through code
+    eps: torch.Tensor  # (B, eps_size) reconstruction through the straight-through code
     encoding: torch.Tensor  # (B, D) encoder output e
     quantised: torch.Tensor  # (B, D) codebook entry e_k (carries the codebook's gradient)
     code: torch.Tensor  # (B,) k
