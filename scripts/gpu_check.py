@@ -5,9 +5,11 @@
     python scripts/gpu_check.py --cpu      # the same code path on the CPU, small sizes (local test)
 
 What it does, printing one JSON summary at the end:
-  1. moves the action predictor (CPU default and RVT size) and the CGMVAE selector to the device;
-     forward + backward under bf16 autocast, checks losses and gradients are finite and that the
-     bf16 loss agrees with the fp32 loss;
+  1. moves the action predictor (CPU default and RVT size) and the CGMVAE selector to the device,
+     at the sizes of cpu_default.yaml / gpu_rvt.yaml (eps: 16 whitened principal components of z,
+     fitted by an SVD on the device, checked to come out whitened); forward + backward under bf16
+     autocast, checks losses and gradients are finite and that the bf16 loss agrees with the fp32
+     loss;
   2. predictor training throughput (samples/s) at batch 64, and inference latency p50/p99 at
      batch 1 (forward + coarse-to-fine 3-D decode); selector training throughput and sample
      latency;
@@ -80,6 +82,8 @@ from actaim2.train.config import ElboWeights  # noqa: E402
 from actaim2.train.elbo import selector_loss  # noqa: E402
 
 Z_DIM = 1920  # z of the default encoder E on ring5
+EPS_DIM, Z_TOKENS = 16, 4  # selector.eps_dim / z_tokens of cpu_default.yaml and gpu_rvt.yaml
+FIT_TRAJECTORIES = 48  # stand-in training set for fit_statistics (more than EPS_DIM)
 
 
 def _sync(dev: torch.device) -> None:
@@ -107,7 +111,7 @@ def _predictor_batch(config: PredictorConfig, batch: int, dev: torch.device, see
     points = torch.rand(batch, 3, generator=g) * 1.6 - 0.8  # cube frame
     targets = ActionTargets(heatmap_targets(points, config.image_size), torch.randint(0, config.rotation_bins, (batch, 3), generator=g),
                             torch.randint(0, 2, (batch,), generator=g))
-    move = lambda t: t.to(dev)  # noqa: E731
+    move = lambda t: None if t is None else t.to(dev)  # noqa: E731  (depth targets: single-view only)
     return move(views), move(eps), move(proprio), ActionTargets(*map(move, targets))
 
 
@@ -161,8 +165,14 @@ def check_predictor(name: str, config: PredictorConfig, dev: torch.device, batch
 def check_selector(name: str, config: SelectorConfig, resolution: int, dev: torch.device, batch: int, repeats: int) -> dict:
     torch.manual_seed(0)
     model = build_selector(config).to(dev)
-    views = torch.rand(batch, 5, 8, resolution, resolution, device=dev)
-    eps = torch.randn(batch, config.z_dim, device=dev)
+    g = torch.Generator(device=dev).manual_seed(0)
+    mixing = torch.randn(config.z_dim, config.z_dim // 8, device=dev, generator=g)  # a correlated z, as E's is
+    z = torch.randn(FIT_TRAJECTORIES + batch, config.z_dim // 8, device=dev, generator=g) @ mixing.T
+    views = torch.rand(FIT_TRAJECTORIES + batch, 5, 8, resolution, resolution, device=dev, generator=g)
+    model.fit_statistics(views[:FIT_TRAJECTORIES], z[:FIT_TRAJECTORIES])  # the SVD of the eps basis runs here
+    fitted = model.standardise(z[:FIT_TRAJECTORIES])
+    whitening_error = float((torch.cov(fitted.T) - torch.eye(config.eps_size, device=dev)).abs().max())
+    views, eps = views[FIT_TRAJECTORIES:], model.standardise(z[FIT_TRAJECTORIES:])
     noise = model.draw_noise(batch, torch.Generator(device=dev).manual_seed(0), dev)
     with torch.autocast(dev.type, dtype=torch.bfloat16):
         loss_bf16, _, metrics = selector_loss(model, views, eps, ElboWeights(), noise)
@@ -188,6 +198,7 @@ def check_selector(name: str, config: SelectorConfig, resolution: int, dev: torc
         "loss_bf16": round(loss_bf16.item(), 3), "loss_fp32": round(loss_fp32, 3),
         "bf16_fp32_rel_diff": round(abs(loss_bf16.item() - loss_fp32) / abs(loss_fp32), 5),
         "grads_finite": grads_finite, "clusters_used": metrics.get("clusters_used"), "train_batch": batch,
+        "eps_size": config.eps_size, "eps_whitening_max_error": round(whitening_error, 5),
         "train_samples_per_s": round(batch * 1e3 / float(np.median(train_ms)), 1),
         "sample_b1_p50_ms": round(float(np.percentile(sample_ms, 50)), 3),
         "sample_b1_p99_ms": round(float(np.percentile(sample_ms, 99)), 3),
@@ -208,7 +219,7 @@ def _ddp_rank(rank: int, world: int, port: int, backend: str, out: str, small: b
                                                       device_ids=[dev.index] if dev.type == "cuda" else None)
     views, eps, proprio, targets = _predictor_batch(config, 8, dev)
     share = torch.arange(8).tensor_split(world)[rank].to(dev)
-    loss, _ = action_loss(model(views[share], eps[share], proprio[share]), ActionTargets(*(t[share] for t in targets)))
+    loss, _ = action_loss(model(views[share], eps[share], proprio[share]), ActionTargets(*(None if t is None else t[share] for t in targets)))
     loss.backward()
     if rank == 0:
         torch.save({n: p.grad.detach().cpu() for n, p in model.module.named_parameters()}, out)
@@ -260,13 +271,14 @@ def main() -> int:
         "gpus": torch.cuda.device_count(), "stubbed_modules": STUBBED, "predictor": [], "selector": [],
     }
     start = time.monotonic()
-    cpu_default = PredictorConfig(embedding_dim=Z_DIM)
-    rvt = PredictorConfig.rvt_size(Z_DIM, image_size=128 if args.cpu else 224)
+    cpu_default = PredictorConfig(embedding_dim=EPS_DIM)
+    rvt = PredictorConfig.rvt_size(EPS_DIM, image_size=128 if args.cpu else 224)
     summary["predictor"].append(check_predictor("predictor cpu-default 128px w128 L2+2", cpu_default, dev, batch, repeats))
     summary["predictor"].append(check_predictor(f"predictor rvt-size {rvt.image_size}px w512 L4+4", rvt, dev,
                                                 2 if args.cpu else batch, 1 if args.cpu else repeats))
-    summary["selector"].append(check_selector("selector cgmvae cpu-default", SelectorConfig(), 128, dev, batch, repeats))
-    gpu_selector = SelectorConfig(width=512, blocks=4, decoder_heads=8,
+    cpu_selector = SelectorConfig(eps_dim=EPS_DIM, z_tokens=Z_TOKENS)
+    summary["selector"].append(check_selector("selector cgmvae cpu-default", cpu_selector, 128, dev, batch, repeats))
+    gpu_selector = SelectorConfig(eps_dim=EPS_DIM, z_tokens=Z_TOKENS, width=512, blocks=4, decoder_heads=8,
                                   obs=ObsEncoderConfig(input_resolution=128, widths=(32, 64, 128, 128), token_dim=128))
     summary["selector"].append(check_selector("selector cgmvae gpu-size", gpu_selector, 128, dev, batch, repeats))
     if not args.skip_ddp:
@@ -276,7 +288,8 @@ def main() -> int:
     summary["seconds"] = round(time.monotonic() - start, 1)
     finite = all(r["grads_finite"] for r in summary["predictor"] + summary["selector"])
     agree = all(r["bf16_fp32_rel_diff"] < 0.05 for r in summary["predictor"] + summary["selector"])
-    summary["ok"] = finite and agree and summary.get("ddp", {"ok": True})["ok"]
+    whitened = all(r["eps_whitening_max_error"] < 1e-3 for r in summary["selector"])
+    summary["ok"] = finite and agree and whitened and summary.get("ddp", {"ok": True})["ok"]
     print(json.dumps(summary, indent=2))
     return 0 if summary["ok"] else 1
 
