@@ -63,7 +63,8 @@ PARAMETERS = {
     "velocity_scaling": (0.5, "fraction of the velocity/acceleration/jerk limits for goals with velocity_scaling = 0"),
     "server_wait": (3.0, "s to wait for an action server (arm: then fall back to the JTC topic)"),
     "joint_states_wait": (5.0, "s a goal waits for /joint_states when there are none yet (start-up discovery)"),
-    "goal_tolerance": (0.01, "rad: /joint_states this close to the last trajectory point, and still, = the arm got there"),
+    "goal_tolerance": (0.01, "rad: /joint_states this close to the last trajectory point, and still, = the arm got there; "
+                       "0 = not checked: the controller's result ends the motion (as the library's executor)"),
     "settle_timeout": (2.0, "s after the controller's result for /joint_states to reach the goal tolerance"),
     "timeout_factor": (3.0, "the controller gets duration * factor + timeout_margin s to finish a trajectory"),
     "timeout_margin": (5.0, "s, see timeout_factor"),

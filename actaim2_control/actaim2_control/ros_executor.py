@@ -6,6 +6,9 @@ Implements :class:`actaim2.control.executor.Executor` over ROS 2 the way a real 
     instead (no result there: completion comes from /joint_states alone);
   * completion: the action result, then /joint_states still and within ``goal_tolerance`` of
     the last point, each with a timeout (wall clock, so a dead simulator cannot hang a goal);
+    a tolerance of 0 is not checked, as in ros2_control's trajectory controller: the result
+    (on the topic, the trajectory's end) completes the motion wherever the object stopped the
+    arm, which is what the library's executor and data collection do;
   * cancel: a Ruckig stop from the measured state at full limits replaces the running
     trajectory (the controller's "new goal replaces the running one"), then the arm must be
     still - well within 0.5 s;
@@ -50,7 +53,7 @@ class ExecutionSettings:
     gripper_max_effort: float  # N; 0 = the robot's default grip force
     gripper_position_unit: str  # actaim2.gripper.POSITION_UNITS
     server_wait: float  # s to wait for an action server before giving up (arm: before the topic fallback)
-    goal_tolerance: float  # rad: /joint_states this close to the last point (and still) = reached
+    goal_tolerance: float  # rad: /joint_states this close to the last point (and still) = reached; 0: not checked
     settle_timeout: float  # s after the controller's result (or the trajectory's end) to get there
     timeout_factor: float  # the controller gets duration * factor + margin to report a result
     timeout_margin: float
@@ -154,8 +157,10 @@ class RosExecutor:
         return self._settled(trajectory.positions[-1])
 
     def _settled(self, goal: np.ndarray) -> StepResult:
-        """/joint_states still and within tolerance of the goal before the settle timeout."""
+        """/joint_states still and within tolerance of the goal before the settle timeout (tolerance 0: not checked)."""
         s = self._settings
+        if s.goal_tolerance <= 0:
+            return StepResult(True, "trajectory ended (goal tolerance 0: not checked)")
 
         def there() -> bool:
             state = self.arm_state()

@@ -40,3 +40,5 @@ def test_parity_runs_both_paths_and_reports_both_outcomes(tmp_path) -> None:
     report = (out / "parity.md").read_text()
     assert f"**Agreement: {agree} / 2**" in report
     assert report.count("| faucet_000 |") == 1 and report.count("| table_000 |") == 1
+    # Both simulated controller and control_node ran with goal tolerances off (0), as the library's executor.
+    assert "goal tolerances: not checked on sim_node and control_node" in report
