@@ -30,7 +30,7 @@ CONTROL_WAITS = {"timeout_margin": 120.0, "joint_states_timeout": 10.0}
 # collection's) follows a trajectory to its end and goes on wherever the object stopped the arm, while
 # the node defaults (0.05 and 0.01 rad) end the episode there. With them, 2 of the committed
 # checkpoint's 3 disagreements were this difference alone (docs/evaluation.md); --node-tolerances keeps them.
-LIBRARY_TOLERANCES = {"sim_node": {"goal_tolerance": 0.0}, "control_node": {"goal_tolerance": 0.0}}
+LIBRARY_TOLERANCE = {"goal_tolerance": 0.0}  # the same parameter name on sim_node and control_node
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -90,9 +90,9 @@ def main(args: argparse.Namespace) -> int:
         fusion["alternate_views_topic"] = policy["predictor_views_topic"] = ALTERNATE_VIEWS
     started = time.perf_counter()
     ros = []
-    tolerances = {} if args.node_tolerances else LIBRARY_TOLERANCES
-    graph.start({"sim_node": {"render_path": render_path, **tolerances.get("sim_node", {})}, "fusion_node": fusion,
-                 "policy_node": policy, "control_node": {"use_cloud": True, **CONTROL_WAITS, **tolerances.get("control_node", {})}})
+    tolerance = {} if args.node_tolerances else LIBRARY_TOLERANCE
+    graph.start({"sim_node": {"render_path": render_path, **tolerance}, "fusion_node": fusion, "policy_node": policy,
+                 "control_node": {"use_cloud": True, **CONTROL_WAITS, **tolerance}})
     try:
         for i, task in enumerate(tasks):
             ros.append(graph.episode(i, task.obj.category, task.obj.instance, task.reset_seed, task.cluster,

@@ -132,14 +132,16 @@ class ModeSelector(nn.Module, abc.ABC):
             d = self.config.eps_dim
             if len(z) <= d:
                 raise ValueError(f"eps_dim {d} principal components need more than {d} training trajectories, got {len(z)}")
-            centred = (z.float() - self.z_mean) / self.z_std
-            centred = centred - centred.mean(dim=0)
-            _, s, vh = torch.linalg.svd(centred, full_matrices=False)
+            _, s, vh = torch.linalg.svd(self._scaled(z), full_matrices=False)  # centred: z_mean is the training mean
             self.eps_basis.copy_(vh[:d].T * (len(z) - 1) ** 0.5 / s[:d].clamp_min(1e-6))  # unit variance per component
+
+    def _scaled(self, z: torch.Tensor) -> torch.Tensor:
+        """z centred and scaled per dimension by the training statistics."""
+        return (z.float() - self.z_mean) / self.z_std
 
     def standardise(self, z: torch.Tensor) -> torch.Tensor:
         """Raw task embedding z -> eps space."""
-        eps = (z.float() - self.z_mean) / self.z_std
+        eps = self._scaled(z)
         return eps if self.eps_basis is None else eps @ self.eps_basis
 
     def condition(self, views: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
