@@ -42,10 +42,10 @@ def run_sample(env: SimEnv, planner: KeyposePlanner, executor, cloud_config: Clo
               "object": obj.key, "slot": task.slot, "reset_seed": task.reset_seed, "sample_seed": task.sample_seed,
               "requested_cluster": task.cluster}
     executed, note = 0, ""
-    planner.set_cloud(scene.cloud.points)  # before begin: a plan-screened source plans ahead with it
     try:
         plan = source.begin(scene)
         record.update(group=plan.group, repetition=plan.repetition, **plan.details)
+        planner.set_cloud(scene.cloud.points)
         runner = KeyposeRunner(planner, executor, rng)
         gripper_closed = False
         for phase in range(len(PHASE_NAMES)):

@@ -7,8 +7,7 @@ Examples:
         --data data/ds --objects ~/partnet-mobility/148 --workers 2
     actaim2 evaluate --out runs/eval --checkpoint runs/cpu/policy --ray auto --workers 16          # a Ray cluster
 
-Rows: ActAIM2 (--checkpoint; also plan-screened, its eps redrawn until the planner accepts INIT and
-REACH, as Data Collection's samples are IK-screened), Goal-RVT (--goal-rvt, default <checkpoint folder>/goal_rvt, with
+Rows: ActAIM2 (--checkpoint), Goal-RVT (--goal-rvt, default <checkpoint folder>/goal_rvt, with
 the dataset's encoder), VQVAE-RVT (--vqvae), ActAIM's CVAE (--cvae), Data Collection (--data:
 the GMM-adaptive sampler fitted on the dataset's exploration trajectories), Random (always),
 and ActAIM2's input ablations (--ablation-depth, --ablation-single-view: a predictor retrained
@@ -42,7 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                                                   "(train config ablation_single_view)")
     parser.add_argument("--data", type=Path, help="the training dataset: Data Collection's GMMs and Goal-RVT's encoder E")
     parser.add_argument("--encoder", type=Path, help="Goal-RVT's encoder E (default: the dataset's encoder.pt)")
-    parser.add_argument("--methods", default="", help="only these rows (comma separated: actaim2, actaim2_screened, data_collection, random, "
+    parser.add_argument("--methods", default="", help="only these rows (comma separated: actaim2, data_collection, random, "
                                                       "goal_rvt, vqvae_rvt, actaim_cvae, actaim2_depth, actaim2_single_view)")
     parser.add_argument("--splits", default="train_seen,train_unseen_instance,heldout_category",
                         help="catalogue splits to evaluate on ('' = none, with --objects)")
@@ -94,7 +93,7 @@ def _methods(args: argparse.Namespace) -> tuple[dict[str, Path], list[str]]:
     from actaim2.eval.methods import METHODS
     from actaim2.train.checkpoint import paths
 
-    checkpoints = {"actaim2": args.checkpoint, "actaim2_screened": args.checkpoint, "goal_rvt": args.goal_rvt, "vqvae_rvt": args.vqvae, "actaim_cvae": args.cvae,
+    checkpoints = {"actaim2": args.checkpoint, "goal_rvt": args.goal_rvt, "vqvae_rvt": args.vqvae, "actaim_cvae": args.cvae,
                    "actaim2_depth": args.ablation_depth, "actaim2_single_view": args.ablation_single_view}
     if checkpoints["goal_rvt"] is None and args.checkpoint is not None and paths(args.checkpoint.parent / "goal_rvt")[1].exists():
         checkpoints["goal_rvt"] = args.checkpoint.parent / "goal_rvt"

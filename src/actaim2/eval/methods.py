@@ -28,9 +28,6 @@ class Method:
 METHODS: dict[str, Method] = {m.name: m for m in (
     Method("actaim2", "ActAIM2", "cluster", "--checkpoint",
            "CGMVAE mode selector + action predictor; samples drawn uniformly over the K clusters"),
-    Method("actaim2_screened", "ActAIM2, plan-screened", "cluster", "--checkpoint",
-           "ActAIM2's checkpoint; eps redrawn from the same cluster (up to collection's max_samples draws) until the "
-           "planner accepts INIT and REACH predicted from the initial views: screened as Data Collection is"),
     Method("data_collection", "Data Collection", "pseudo", "--data",
            "the GMM-adaptive sampler of data collection (fitted on the object's random + heuristic-grasp trajectories), "
            "IK-screened as in collection"),

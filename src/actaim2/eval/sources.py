@@ -4,7 +4,6 @@
   (the same code ``policy_node`` runs): the mode eps drawn once from the robot-hidden initial
   views (a given cluster, or from the prior without clusters), then one keypose per phase
   predicted from the views observed just before it. ActAIM2, VQVAE-RVT, ActAIM (CVAE).
-  With a :class:`PlanScreen` (the ActAIM2 plan-screened row) eps is redrawn until INIT and REACH plan.
 * :class:`GoalSource` - Goal-RVT: the predictor fed the true task embedding of a goal, computed
   from a robot-hidden render of the object set to the goal's end state (privileged: an oracle).
 * :class:`SamplerSource` - a data-collection sampler: an action sequence drawn from the object
@@ -26,7 +25,6 @@ from actaim2.data.collect import ik_reachable
 from actaim2.data.object_cloud import ObjectCloud
 from actaim2.data.trajectory import Observation
 from actaim2.eval.methods import PSEUDO_CLUSTERS
-from actaim2.eval.screen import PlanScreen
 from actaim2.eval.sim_views import ViewMaker, pictures
 from actaim2.eval.tasks import EvalTask
 from actaim2.keypose import Keypose
@@ -104,42 +102,16 @@ class ServedPolicy:
 
 
 class PolicySource(ServedPolicy):
-    """A policy's sample: eps from the selector, keyposes from the predictor; with ``screen``, eps is redrawn (same
-    cluster) until the planner accepts its first two keyposes (``screen.py``)."""
-
-    def __init__(self, model: PolicyModel, spec: RobotSpec, screen: PlanScreen | None = None):
-        super().__init__(model, spec)
-        self.screen = screen
-
     def begin(self, scene: Scene) -> Plan:
         task = scene.task
         views = self.views("selector", scene.init_pictures, scene.env)
-        cluster = task.cluster if task.clusters else -1
-        sample = self.model.sample_mode(views, cluster, task.sample_seed)
-        details = {"cluster": sample.cluster}
-        if self.screen is not None:
-            sample = self._screened(scene, views, cluster, sample, details)
+        sample = self.model.sample_mode(views, task.cluster if task.clusters else -1, task.sample_seed)
         if task.clusters:
             group, repetition = task.cluster, task.slot // task.clusters
         else:
             group, repetition = pseudo_group(task.slot)
+        details = {"cluster": sample.cluster}
         return Plan(group, repetition, self.keyposes(scene, sample.eps, details), details, sample.eps)
-
-    def _screened(self, scene: Scene, views: Views, cluster: int, first, details: dict):
-        """The first draw whose INIT and REACH plan, else ``first``; the draws used go into ``details``."""
-        ahead = self.views("predictor", pictures(scene.env, with_robot=True), scene.env)  # what INIT and REACH will read
-        sample = first
-        for draw in range(self.screen.draws):
-            if draw:
-                sample = self.model.sample_mode(views, cluster, self.screen.draw_seed(scene.task.sample_seed, draw))
-            eps = sample.eps
-            refusal = self.screen.refusal(lambda phase, closed: self.model.predict_keypose(ahead, eps, phase, closed).keypose,
-                                          scene.rng)
-            if refusal is None:
-                details.update(draws=draw + 1, cluster=sample.cluster)
-                return sample
-        details.update(draws=self.screen.draws, screen="no draw passed")
-        return first
 
 
 def feasible_goals(info: ResetInfo) -> list[tuple[str, int]]:

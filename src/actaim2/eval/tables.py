@@ -130,21 +130,16 @@ def _above(a: Rate | None, b: Rate | None) -> str:
 
 
 def acceptance_table(records: Sequence[dict]) -> list[str]:
-    """Issue 13's acceptance: ActAIM2's intervals above Data Collection's (SSR; 2nd mode vs pseudo-clusters), for the
-    ActAIM2 row and, when it ran, its plan-screened row (screened as Data Collection's samples are)."""
+    """Issue 13's acceptance: ActAIM2's intervals above Data Collection's (SSR; 2nd mode vs pseudo-clusters)."""
     ssr, modes = ssr_cells(records), mode_cells(records, 2)
-    rows = [m for m in ("actaim2", "actaim2_screened") if any(r["method"] == m for r in records)] or ["actaim2"]
-    lines = ["| check | row | ActAIM2 | Data Collection | interval above |", "|---|---|---|---|---|"]
-    for m in rows:
-        for split in (s for s in SPLITS[:2] if s in _splits(records)):
-            a, b = ssr.get((m, split, AVG)), ssr.get(("data_collection", split, AVG))
-            lines.append(f"| SSR, {SPLIT_TITLES[split]} | {METHODS[m].title} | {a.cell() if a else '-'} | "
-                         f"{b.cell() if b else '-'} | {_above(a, b)} |")
-        for split in _splits(records):
-            a, b = modes.get((m, split, AVG, 2)), modes.get(("data_collection", split, AVG, 2))
-            lines.append(f"| 2nd-mode SSR, {SPLIT_TITLES[split]} (Data Collection in {PSEUDO_CLUSTERS} random "
-                         f"pseudo-clusters) | {METHODS[m].title} | {a.cell() if a else '-'} | {b.cell() if b else '-'} | "
-                         f"{_above(a, b)} |")
+    lines = ["| check | ActAIM2 | Data Collection | interval above |", "|---|---|---|---|"]
+    for split in (s for s in SPLITS[:2] if s in _splits(records)):
+        a, b = ssr.get(("actaim2", split, AVG)), ssr.get(("data_collection", split, AVG))
+        lines.append(f"| SSR, {SPLIT_TITLES[split]} | {a.cell() if a else '-'} | {b.cell() if b else '-'} | {_above(a, b)} |")
+    for split in _splits(records):
+        a, b = modes.get(("actaim2", split, AVG, 2)), modes.get(("data_collection", split, AVG, 2))
+        lines.append(f"| 2nd-mode SSR, {SPLIT_TITLES[split]} (Data Collection in {PSEUDO_CLUSTERS} random pseudo-clusters) | "
+                     f"{a.cell() if a else '-'} | {b.cell() if b else '-'} | {_above(a, b)} |")
     return lines
 
 

@@ -39,7 +39,7 @@ class EvalTask:
 class SampleCounts:
     """Samples per object of each method.
 
-    ActAIM2 (plan-screened too, and its input ablations) gets ``per_cluster`` samples from each of its K clusters. The baselines with groups
+    ActAIM2 (and its input ablations) gets ``per_cluster`` samples from each of its K clusters. The baselines with groups
     get ``baseline_per_group`` per group: VQVAE-RVT per code, Data Collection per pseudo-cluster
     (its Mode SSR is the yardstick ActAIM2's 2nd mode is compared with, which needs samples in
     both halves of every group: 2 or more). The others get ``per_object`` samples per object.
@@ -51,7 +51,7 @@ class SampleCounts:
 
     def of(self, method: str, clusters: int) -> int:
         """Samples per object of ``method`` (``clusters``: its K, 0 when not clustered)."""
-        if method in ("actaim2", "actaim2_screened") or method in ABLATIONS:
+        if method == "actaim2" or method in ABLATIONS:
             return self.per_cluster * clusters
         if METHODS[method].grouping == "cluster":
             return self.baseline_per_group * clusters

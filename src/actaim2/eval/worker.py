@@ -65,7 +65,6 @@ class EvalWorker:
     def _build(self, method: str):
         from actaim2.data.random_sampler import RandomSampler, SamplingConfig
         from actaim2.eval.checkpoints import perception_of
-        from actaim2.eval.screen import PlanScreen
         from actaim2.eval.sources import GoalSource, PolicySource, SamplerSource
         from actaim2.policy.inference import PolicyModel
 
@@ -80,8 +79,6 @@ class EvalWorker:
             from actaim2.data.encoder import ImageEncoder
 
             return GoalSource(model, spec, ImageEncoder.load(s.encoder))
-        if method == "actaim2_screened":
-            return PolicySource(model, spec, PlanScreen(self.planner, spec.home, s.max_samples))
         return PolicySource(model, spec)
 
     def run(self, task) -> dict:
