@@ -40,6 +40,22 @@ def matrix_to_pose(T: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     return T[:3, 3].copy(), q
 
 
+def depth_to_points(depth: ArrayLike, K: ArrayLike) -> np.ndarray:
+    """(H, W, 3) float64 points in the optical frame of a z-depth image (metres; 0 or NaN: no return, NaN out).
+
+    Pixel (u, v) is back-projected through its centre (u + 0.5, v + 0.5), the simulator's
+    convention (``actaim2.sim.cameras.CameraSpec.pixel_rays``). The one definition of a depth
+    camera's cloud: the simulator's published clouds and the stored pictures the training views
+    are made from both go through it, so the ROS loop's views are the training views.
+    """
+    K = np.asarray(K, dtype=float)
+    h, w = np.shape(depth)
+    u = (np.arange(w, dtype=np.float64) + 0.5 - K[0, 2]) / K[0, 0]
+    v = (np.arange(h, dtype=np.float64) + 0.5 - K[1, 2]) / K[1, 1]
+    z = np.where(np.asarray(depth) > 0, depth, np.nan).astype(np.float32)
+    return np.stack([u[None, :] * z, v[:, None] * z, z.astype(np.float64)], axis=-1)
+
+
 def invert(T: ArrayLike) -> np.ndarray:
     """Inverse of a rigid transform without a general matrix inverse."""
     T = np.asarray(T, dtype=float)

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from actaim2.data.trajectory import CameraImage, Observation
+from actaim2.geometry import depth_to_points
 from actaim2.perception.fusion import CameraCloud, FusionConfig, fuse
 
 
@@ -40,18 +41,8 @@ class ObjectCloud:
 
 
 def back_project(image: CameraImage) -> np.ndarray:
-    """(H*W, 3) points in the camera's optical frame (NaN where depth is 0).
-
-    Pixel (u, v) is centred at (u + 0.5, v + 0.5), the simulator's convention
-    (``actaim2.sim.cameras.CameraSpec.pixel_rays``).
-    """
-    h, w = image.depth.shape
-    K = image.K
-    u = (np.arange(w, dtype=np.float32) + 0.5 - K[0, 2]) / K[0, 0]
-    v = (np.arange(h, dtype=np.float32) + 0.5 - K[1, 2]) / K[1, 1]
-    z = np.where(image.depth > 0, image.depth, np.nan).astype(np.float32)
-    xyz = np.stack([u[None, :] * z, v[:, None] * z, z], axis=-1)
-    return xyz.reshape(-1, 3)
+    """(H*W, 3) points in the camera's optical frame (NaN where depth is 0): :func:`actaim2.geometry.depth_to_points`."""
+    return depth_to_points(image.depth, image.K).reshape(-1, 3)
 
 
 def fused_cloud(observation: Observation, config: CloudConfig):

@@ -4,7 +4,9 @@ Cameras use SAPIEN's ``minimal`` shader, the cheapest one that gives what a dept
 ``PositionSegmentation`` (int32 millimetres in the OpenGL camera frame - x right, y up,
 z backward - plus the entity id) and ``Color``. Converting to the ROS optical frame (x right,
 y down, z forward) is a sign flip of y and z (``T_OPENGL_OPTICAL``). Depth is therefore
-quantised to 1 mm, like a real ToF camera's uint16 millimetre depth image.
+quantised to 1 mm, like a real ToF camera's uint16 millimetre depth image; x and y are
+back-projected from it through the pixel centres (``geometry.depth_to_points``), as the
+stored pictures are.
 
 All cameras are triggered before any picture is read, so lavapipe renders them back to back.
 Heavy visual meshes are decimated the first time an entity is seen (``render_meshes``).
@@ -14,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import sapien
 
-from actaim2.geometry import T_ENTITY_OPTICAL, T_OPENGL_OPTICAL
+from actaim2.geometry import T_ENTITY_OPTICAL, T_OPENGL_OPTICAL, depth_to_points
 from actaim2.sim.cameras import CameraFrame, CameraSpec
 from actaim2.sim.render_meshes import simplify_render_body
 
@@ -23,7 +25,7 @@ SHADER = "minimal"
 # a metal with a glossy finish; an entity is specular when most of its visual triangles are.
 SPECULAR_METALLIC = 0.5
 SPECULAR_ROUGHNESS = 0.3
-_MM_TO_OPTICAL = (np.diag(T_OPENGL_OPTICAL)[:3] / 1000.0).astype(np.float32)
+_MM_TO_DEPTH = np.float32(T_OPENGL_OPTICAL[2, 2] / 1000.0)  # OpenGL z (backward, mm) -> optical z (forward, m)
 
 
 class SapienRenderer:
@@ -95,10 +97,12 @@ class SapienRenderer:
         camera = self._components[spec.name]
         position = camera.get_picture("PositionSegmentation")
         colour = camera.get_picture("Color")
-        xyz = position[..., :3].astype(np.float32) * _MM_TO_OPTICAL
-        z = xyz[..., 2]
+        z = position[..., 2].astype(np.float32) * _MM_TO_DEPTH
         valid = (position[..., 2] < 0) & (z >= spec.min_depth) & (z <= spec.max_depth)
-        xyz[~valid] = np.nan
+        # x and y back-projected from the millimetre depth, as from a depth image, not SAPIEN's
+        # millimetre x and y: the pictures training stores keep only the depth, and their
+        # back-projection must give the same points as the clouds published from this frame
+        xyz = depth_to_points(np.where(valid, z, np.nan), spec.K).astype(np.float32)
         rgb = (np.clip(colour[..., :3], 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
         rgb[~valid] = 0
         segmentation = np.where(valid, position[..., 3], 0).astype(np.int32)
