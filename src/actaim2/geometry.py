@@ -43,10 +43,11 @@ def matrix_to_pose(T: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
 def depth_to_points(depth: ArrayLike, K: ArrayLike) -> np.ndarray:
     """(H, W, 3) float64 points in the optical frame of a z-depth image (metres; 0 or NaN: no return, NaN out).
 
-    Pixel (u, v) is back-projected through its centre (u + 0.5, v + 0.5), the simulator's
-    convention (``actaim2.sim.cameras.CameraSpec.pixel_rays``). The one definition of a depth
-    camera's cloud: the simulator's published clouds and the stored pictures the training views
-    are made from both go through it, so the ROS loop's views are the training views.
+    Pixel (u, v) covers [u, u+1) x [v, v+1) and is back-projected through its centre (u + 0.5,
+    v + 0.5), the convention of SAPIEN's renderer (its principal point for an ideal camera is
+    exactly W/2, H/2). The one definition of a depth camera's cloud and pixel rays: the
+    simulator's published clouds, its ray caster and the stored pictures the training views are
+    made from all go through it, so the ROS loop's views are the training views.
     """
     K = np.asarray(K, dtype=float)
     h, w = np.shape(depth)

@@ -20,7 +20,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from actaim2.geometry import T_ENTITY_OPTICAL
+from actaim2.geometry import T_ENTITY_OPTICAL, depth_to_points
 
 RIGS = ("ring5", "azure_kinect")
 
@@ -59,18 +59,10 @@ class CameraSpec:
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
 
     def pixel_rays(self) -> np.ndarray:
-        """(H, W, 3) ray directions in the optical frame with z = 1, through pixel centres.
-
-        Pixel (u, v) covers [u, u+1) x [v, v+1); its centre is at u + 0.5, the convention of
-        SAPIEN's renderer (its principal point for an ideal camera is exactly W/2, H/2), so the
-        two render paths sample the same rays.
-        """
-        u = (np.arange(self.width, dtype=np.float64) + 0.5 - self.cx) / self.fx
-        v = (np.arange(self.height, dtype=np.float64) + 0.5 - self.cy) / self.fy
-        rays = np.ones((self.height, self.width, 3))
-        rays[..., 0] = u[None, :]
-        rays[..., 1] = v[:, None]
-        return rays
+        """(H, W, 3) ray directions in the optical frame with z = 1, through pixel centres: a depth of 1 everywhere
+        back-projected (:func:`actaim2.geometry.depth_to_points`), so both render paths and the stored pictures share
+        one pixel convention."""
+        return depth_to_points(np.ones((self.height, self.width)), self.K)
 
     def with_pose(self, T_world_optical: np.ndarray) -> "CameraSpec":
         """The same camera rendered from another pose (frames and tf_chain stay nominal); an
