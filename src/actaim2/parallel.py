@@ -7,7 +7,9 @@ simulator, loaded models) across tasks. Three executors, one interface (:func:`r
 * ``workers=0`` - in this process (debugging, tests);
 * ``workers=N`` - N spawned processes (``concurrent.futures``), a few tasks in flight per worker
   so memory stays flat however many tasks there are; a worker that dies stops the run with
-  BrokenProcessPool instead of hanging it;
+  BrokenProcessPool instead of hanging it, and a parent that dies without cleaning up (SIGTERM,
+  SIGKILL) takes its workers with it within :data:`ORPHAN_POLL_S` (they would otherwise go on
+  simulating the tasks already queued to them, then wait forever);
 * ``ray_address`` - N Ray actors on a cluster (``"auto"``, ``"ray://host:10001"``, or
   ``"local"`` to start a private local instance). Ray is an optional extra
   (``pip install -e src/actaim2[ray]``); without it this executor says so.
@@ -19,16 +21,30 @@ from __future__ import annotations
 import importlib
 import multiprocessing as mp
 import os
+import threading
+import time
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from typing import Any, Callable, Iterable, Iterator
 
 IN_FLIGHT_PER_WORKER = 2
+ORPHAN_POLL_S = 1.0
 
 _WORKER: Any = None
 
 
-def _init(make: Callable[[Any], Any], setup: Any) -> None:
+def _exit_when_orphaned(parent: int) -> None:
+    """Poll the parent pid; once the worker is re-parented (its parent died), exit at once.
+
+    Polling getppid is POSIX-portable, unlike Linux's PR_SET_PDEATHSIG, and costs nothing.
+    """
+    while os.getppid() == parent:
+        time.sleep(ORPHAN_POLL_S)
+    os._exit(1)
+
+
+def _init(make: Callable[[Any], Any], setup: Any, parent: int) -> None:
     global _WORKER
+    threading.Thread(target=_exit_when_orphaned, args=(parent,), name="orphan-watch", daemon=True).start()
     _WORKER = make(setup)
 
 
@@ -50,7 +66,8 @@ def run_unordered(make: Callable[[Any], Any], setup: Any, tasks: Iterable[Any], 
 
 def _processes(make, setup, tasks: Iterable[Any], workers: int) -> Iterator[Any]:
     os.environ.setdefault("OMP_NUM_THREADS", "1")  # inherited by the workers (Open3D, PyTorch)
-    pool = ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"), initializer=_init, initargs=(make, setup))
+    pool = ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn"), initializer=_init,
+                               initargs=(make, setup, os.getpid()))
     todo = iter(tasks)
     pending: set[Future] = set()
     try:

@@ -1,0 +1,88 @@
+"""actaim2.parallel's process executor: results of every task, and no worker outlives a killed parent."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+from actaim2.parallel import ORPHAN_POLL_S, run_unordered
+
+# A parent whose workers record their pid, then each sit on a long task.
+PARENT = textwrap.dedent("""
+    import os, sys, time
+    from pathlib import Path
+    from actaim2.parallel import run_unordered
+
+    class Sleeper:
+        def __init__(self, folder):
+            (Path(folder) / str(os.getpid())).touch()
+
+        def run(self, task):
+            time.sleep(600)
+
+    def make(folder):
+        return Sleeper(folder)
+
+    if __name__ == "__main__":
+        for _ in run_unordered(make, sys.argv[1], range(8), workers=2):
+            pass
+""")
+
+
+class Square:
+    def run(self, task: int) -> int:
+        return task * task
+
+
+def make_square(_setup: None) -> Square:
+    return Square()
+
+
+def _alive(pid: int) -> bool:
+    """Running, not merely a zombie waiting for whoever adopted it to reap it."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except FileNotFoundError:
+        return False
+    return state != "Z"
+
+
+@pytest.mark.parametrize("workers", [0, 2])
+def test_every_task_comes_back(workers: int) -> None:
+    assert sorted(run_unordered(make_square, None, range(7), workers=workers)) == [t * t for t in range(7)]
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads process states from /proc")
+@pytest.mark.timeout(120)
+def test_workers_exit_when_their_parent_is_killed(tmp_path) -> None:
+    script = tmp_path / "parent.py"
+    script.write_text(PARENT)
+    pids = tmp_path / "pids"
+    pids.mkdir()
+    parent = subprocess.Popen([sys.executable, str(script), str(pids)], env=dict(os.environ))
+    try:
+        deadline = time.monotonic() + 60
+        while len(list(pids.iterdir())) < 2 and time.monotonic() < deadline:
+            time.sleep(0.2)
+        workers = [int(p.name) for p in pids.iterdir()]
+        assert len(workers) == 2, f"workers started: {workers}"
+        time.sleep(0.5)  # the watch thread is started before the worker object is built: it is running now
+        assert all(_alive(pid) for pid in workers)
+        parent.send_signal(signal.SIGKILL)
+        parent.wait(10)
+        deadline = time.monotonic() + 10 * ORPHAN_POLL_S
+        while any(_alive(pid) for pid in workers) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        left = [pid for pid in workers if _alive(pid)]
+        assert not left, f"workers still running {10 * ORPHAN_POLL_S:.0f} s after their parent was killed: {left}"
+    finally:
+        parent.kill()
+        for pid in (int(p.name) for p in pids.iterdir()):
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
