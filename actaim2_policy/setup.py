@@ -13,8 +13,10 @@ setup(
         ("share/" + package_name, ["package.xml"]),
         ("share/" + package_name + "/config", glob("config/*.yaml")),
         ("share/" + package_name + "/launch", glob("launch/*.yaml") + glob("launch/*.launch.xml")),
-        # the committed policy checkpoints (safetensors + JSON) that policy_node's `checkpoint` names
-        ("share/" + package_name + "/checkpoints", glob("checkpoints/*.json") + glob("checkpoints/*.safetensors")),
+        # the committed policy checkpoints (safetensors + JSON, and the encoder E beside those that have it)
+        # that policy_node's `checkpoint` names
+        ("share/" + package_name + "/checkpoints",
+         glob("checkpoints/*.json") + glob("checkpoints/*.safetensors") + glob("checkpoints/*.encoder.pt")),
     ],
     install_requires=["setuptools"],
     zip_safe=True,

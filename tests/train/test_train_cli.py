@@ -10,21 +10,22 @@ import json
 
 import numpy as np
 import pytest
+import torch
 import yaml
 
 from actaim2.cli import main as cli_main
 from actaim2.data.actions import ActionSequence
-from actaim2.data.labelling import EMBEDDINGS_FILE
+from actaim2.data.encoder import ImageEncoder
+from actaim2.data.labelling import EMBEDDINGS_FILE, ENCODER_FILE, encoder_digest
 from actaim2.data.storage import DatasetWriter, encode_trajectory, write_labels
 from actaim2.data.trajectory import OBSERVATION_NAMES, CameraImage, ObjectState, Trajectory
 from actaim2.perception.config import capture_part, load_perception_config
 from actaim2.perception.synthetic import RaycastScene, box_mesh
 from actaim2.sim.cameras import ring5
-from actaim2.train.checkpoint import load_policy, perception_record
+from actaim2.train.checkpoint import encoder_path, load_policy, perception_record
 
 TARGET = np.array([0.75, 0.0, 0.2])
 Z_DIM = 10
-ENCODER_DIGEST = "fedcba9876543210"  # the encoder E that made the synthetic task embeddings
 
 
 def _pictures(shift: float) -> dict[str, CameraImage]:
@@ -59,9 +60,11 @@ def dataset(tmp_path_factory):
         for i in range(12):
             ids.append(writer.append(encode_trajectory(_trajectory(i, pictures)))["id"])
     write_labels(root, [{"id": t, "score": 1.0, "change": 1.0, "success": i != 5} for i, t in enumerate(ids)])  # one failure
+    torch.manual_seed(0)
+    ImageEncoder.autoencoder().save(root / ENCODER_FILE)  # the encoder E said to have made the synthetic task embeddings
     rng = np.random.default_rng(0)
     np.savez(root / EMBEDDINGS_FILE, ids=np.array(ids), z=rng.normal(size=(len(ids), Z_DIM)).astype(np.float32),
-             encoder_digest=np.array(ENCODER_DIGEST))
+             encoder_digest=np.array(encoder_digest(root / ENCODER_FILE)))
     return root
 
 
@@ -87,9 +90,12 @@ def test_train_command_runs_all_phases_and_writes_loadable_checkpoints(dataset, 
     record = perception_record(load_perception_config("ring5"))
     policy = load_policy(out / "policy", record)
     assert policy.meta["lineage"]["phases_done"] == ["selector", "predictor", "joint"]
-    assert policy.meta["lineage"]["encoder_digest"] == ENCODER_DIGEST  # the E of the z it learned (finetune checks it)
+    digest = encoder_digest(dataset / ENCODER_FILE)
+    assert policy.meta["lineage"]["encoder_digest"] == digest  # the E of the z it learned (finetune checks it)
     assert policy.predictor.config.image_size == 128 and policy.selector.config.z_dim == Z_DIM
     assert load_policy(out / "goal_rvt", record).predictor is not None
+    for stem in ("policy", "goal_rvt"):  # E travels with each model: bag2dataset and Goal-RVT embed with it
+        assert encoder_digest(encoder_path(out / stem)) == digest
     history = [json.loads(line) for line in (out / "history.jsonl").read_text().splitlines()]
     assert {h["phase"] for h in history} == {"selector", "predictor", "joint"}
     assert all(h["val"] is not None and np.isfinite(h["val"]["loss"]) for h in history)

@@ -61,6 +61,28 @@ def embeddings_encoder_digest(root: str | Path) -> str | None:
         return str(f["encoder_digest"]) if "encoder_digest" in f else None
 
 
+def dataset_encoder(root: str | Path) -> Path | None:
+    """The encoder file that made a dataset's task embeddings, or None when none is found.
+
+    Candidates, the first whose digest is the embeddings' wins: the file labelling used
+    (``labelling.json``: a user's VGG-19 file or the trained default), the file ``bag2dataset``
+    converted with (``dataset.json``), ``<root>/encoder.pt``.
+    """
+    root = Path(root)
+    digest = embeddings_encoder_digest(root)
+    if digest is None:
+        return None
+    candidates = []
+    if (root / REPORT_FILE).exists():
+        candidates.append(Path(json.loads((root / REPORT_FILE).read_text())["encoder"]))
+    if (root / "dataset.json").exists():
+        used = json.loads((root / "dataset.json").read_text()).get("encoder")
+        if isinstance(used, dict) and used.get("path"):
+            candidates.append(Path(used["path"]))
+    candidates.append(root / ENCODER_FILE)
+    return next((p for p in candidates if p.is_file() and encoder_digest(p) == digest), None)
+
+
 def fit_default_encoder(reader: DatasetReader, max_trajectories: int = 150, steps: int = 800, seed: int = 0,
                         show_progress: bool = True) -> tuple[ImageEncoder, list[float]]:
     """Train the autoencoder E on O_init and O_final of (up to) ``max_trajectories`` training trajectories."""

@@ -18,7 +18,6 @@ Interrupt it at any time: the same command resumes, skipping finished samples. T
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import shlex
 import sys
@@ -98,9 +97,10 @@ def _methods(args: argparse.Namespace) -> tuple[dict[str, Path], list[str]]:
     if checkpoints["goal_rvt"] is None and args.checkpoint is not None and paths(args.checkpoint.parent / "goal_rvt")[1].exists():
         checkpoints["goal_rvt"] = args.checkpoint.parent / "goal_rvt"
     available = [m for m, stem in checkpoints.items() if stem is not None]
-    if checkpoints["goal_rvt"] is not None and _encoder(args) is None:
+    if checkpoints["goal_rvt"] is not None and _encoder(args, checkpoints["goal_rvt"]) is None:
         available.remove("goal_rvt")
-        print("actaim2 evaluate: Goal-RVT left out: its encoder E needs --data (encoder.pt) or --encoder", file=sys.stderr)
+        print("actaim2 evaluate: Goal-RVT left out: its encoder E is not beside its checkpoint; it needs --data "
+              "(the encoder of its embeddings) or --encoder", file=sys.stderr)
     if args.data is not None:
         available.append("data_collection")
     available.append("random")
@@ -114,18 +114,16 @@ def _methods(args: argparse.Namespace) -> tuple[dict[str, Path], list[str]]:
     return {m: Path(s) for m, s in checkpoints.items() if s is not None}, [m for m in METHODS if m in wanted and m in available]
 
 
-def _encoder(args: argparse.Namespace) -> Path | None:
-    from actaim2.data.labelling import ENCODER_FILE, REPORT_FILE
+def _encoder(args: argparse.Namespace, goal_rvt: Path) -> Path | None:
+    """Goal-RVT's encoder E: --encoder, else the one beside its checkpoint, else the dataset's."""
+    from actaim2.data.labelling import dataset_encoder
+    from actaim2.train.checkpoint import encoder_path
 
     if args.encoder is not None:
         return args.encoder
-    if args.data is None:
-        return None
-    report = args.data / REPORT_FILE
-    if report.exists():  # the encoder labelling used (a user's VGG-19 file, or the trained default)
-        used = Path(json.loads(report.read_text())["encoder"])
-        return used if used.exists() else None
-    return args.data / ENCODER_FILE if (args.data / ENCODER_FILE).exists() else None
+    if encoder_path(goal_rvt).is_file():
+        return encoder_path(goal_rvt)
+    return dataset_encoder(args.data) if args.data is not None else None
 
 
 def main(args: argparse.Namespace) -> int:
@@ -161,7 +159,7 @@ def main(args: argparse.Namespace) -> int:
             raise ValueError("no object to evaluate on: give --splits or --objects")
         render_path = _render_path(perception, args)
         gmm = data_collection_samplers(args.data) if "data_collection" in methods else None
-        encoder = _encoder(args) if "goal_rvt" in methods else None
+        encoder = _encoder(args, stems["goal_rvt"]) if "goal_rvt" in methods else None
         run = {"eval_set_version": EVAL_SET_VERSION, "robot": args.robot, "rig": perception.rig,
                "methods": {m: described.get(m, {}).get("weights_sha256") or ("dataset " + _data_digest(args.data)
                                                                           if m == "data_collection" else m) for m in methods}}

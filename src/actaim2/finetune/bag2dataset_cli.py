@@ -21,7 +21,8 @@ from pathlib import Path
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("bags", nargs="+", type=Path, help="rosbag2 folders (or .mcap/.db3 files), one or more episodes each")
     parser.add_argument("--out", type=Path, required=True, help="dataset folder to create")
-    parser.add_argument("--encoder", type=Path, required=True, help="the encoder E of the pretraining data (<dataset>/encoder.pt)")
+    parser.add_argument("--encoder", type=Path,
+                        help="the encoder E of the pretraining data (default: the one beside --checkpoint, <stem>.encoder.pt)")
     parser.add_argument("--perception", default="azure_kinect",
                         help="perception configuration (rig name or YAML) the policy is served with: its rig names the cloud topics")
     parser.add_argument("--robot", default="kinova_j2s6s200", help="the robot in the bags (preset or YAML): its self-filter hides it")
@@ -32,11 +33,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     from actaim2.finetune.bag2dataset import bags_to_dataset
     from actaim2.perception.config import load_perception_config
-    from actaim2.train.checkpoint import CheckpointError
+    from actaim2.train.checkpoint import CheckpointError, encoder_path
 
+    encoder = args.encoder
+    if encoder is None and args.checkpoint is None:
+        print("actaim2 bag2dataset: give --encoder (the pretraining data's encoder.pt) or --checkpoint (its <stem>.encoder.pt is used)")
+        return 2
+    if encoder is None:
+        encoder = encoder_path(args.checkpoint)
+        if not encoder.is_file():
+            print(f"actaim2 bag2dataset: {args.checkpoint} has no encoder E beside it ({encoder}; checkpoints trained "
+                  f"before encoders were shipped): give --encoder, the encoder.pt of the data it was trained on")
+            return 2
     try:
         config = load_perception_config(args.perception)
-        summary = bags_to_dataset(args.bags, args.out, config, args.robot, args.encoder, checkpoint=args.checkpoint)
+        summary = bags_to_dataset(args.bags, args.out, config, args.robot, encoder, checkpoint=args.checkpoint)
     except (FileNotFoundError, FileExistsError, ValueError, CheckpointError) as exc:
         print(f"actaim2 bag2dataset: {exc}")
         return 2

@@ -35,7 +35,7 @@ from typing import Sequence
 import numpy as np
 import torch
 
-from actaim2.data.labelling import embeddings_encoder_digest
+from actaim2.data.labelling import dataset_encoder, embeddings_encoder_digest
 from actaim2.data.splits import TRAIN
 from actaim2.data.storage import DatasetReader
 from actaim2.finetune.clusters import assign_clusters, cluster_table
@@ -150,6 +150,8 @@ def finetune(parent: str | Path, dataset: str | Path, out: str | Path, config: F
               **{p: {"train": mean_losses(trainer, p, train, config.seed), "val": mean_losses(trainer, p, val, config.seed)}
                  for p in config.phases}}
     trainer.lineage.update(encoder_digest=encoder["encoder_digest"])
+    beside = checkpoint.encoder_path(parent)
+    trainer.encoder_file = dataset_encoder(dataset) or (beside if encoder["checked"] and beside.is_file() else None)
     results = trainer.run()
     after = {"clusters": cluster_table(data.ids, labels, assign_clusters(trainer.selector, data, trainer.device), k),
              **{p: {"train": mean_losses(trainer, p, train, config.seed), "val": mean_losses(trainer, p, val, config.seed)}

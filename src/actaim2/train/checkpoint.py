@@ -16,7 +16,8 @@ naming the problem (never a bare crash, never unpickling):
   * WeightsMismatchError     tensors missing / unexpected / of another shape than the model the
                              JSON's configuration builds.
 Both files are written to temporary names and renamed, JSON last, so an interrupted save leaves
-the previous checkpoint intact.
+the previous checkpoint intact. A policy trained on task embeddings has a third file,
+``<stem>.encoder.pt``: the encoder E that made them (:func:`encoder_path`), copied by training.
 """
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ import hashlib
 import json
 import os
 import platform
+import shutil
 import time
 from importlib import metadata
 from pathlib import Path
@@ -35,6 +37,7 @@ import torch
 
 FORMAT = "actaim2-checkpoint"
 FORMAT_VERSION = 1
+ENCODER_SUFFIX = ".encoder.pt"
 PACKAGES = ("torch", "numpy", "safetensors", "actaim2")
 
 
@@ -123,6 +126,26 @@ def paths(stem: str | Path) -> tuple[Path, Path]:
     if stem.suffix in (".json", ".safetensors"):
         stem = stem.with_suffix("")
     return stem.with_suffix(".safetensors"), stem.with_suffix(".json")
+
+
+def encoder_path(stem: str | Path) -> Path:
+    """``<stem>.encoder.pt``: the encoder E whose task embeddings the checkpoint's selector learned.
+
+    E travels with the checkpoint because fine-tuning (``actaim2 bag2dataset``) and the Goal-RVT
+    evaluation must embed new observations with that same E; without the file a checkpoint can
+    only be served, not carried on.
+    """
+    weights, _ = paths(stem)
+    return weights.with_name(weights.stem + ENCODER_SUFFIX)
+
+
+def ship_encoder(stem: str | Path, encoder: str | Path) -> Path:
+    """Copy the encoder file beside the checkpoint (atomically); its path."""
+    target = encoder_path(stem)
+    tmp = target.with_name(target.name + ".tmp")
+    shutil.copyfile(encoder, tmp)
+    os.replace(tmp, target)
+    return target
 
 
 def save(stem: str | Path, tensors: dict[str, torch.Tensor], meta: dict) -> Path:

@@ -92,6 +92,7 @@ class Trainer:
         self.selector: ModeSelector = build_selector(self.selector_config).to(self.device)
         self.predictor = ActionPredictor(self.predictor_config).to(self.device)
         self.lineage: dict = {"init_from": None, "phases_done": []}
+        self.encoder_file: Path | None = None  # E of the task embeddings, shipped beside every model saved (callers set it)
         self.phase_index, self.step, self.optimizer_state = 0, 0, None
         self.temperature = gumbel_temperature(0.0)  # the CGMVAE's Gumbel-softmax temperature, annealed per epoch
         if init_from is not None:
@@ -161,8 +162,15 @@ class Trainer:
         tensors["rng.torch"] = torch.get_rng_state()
         checkpoint.save(self.out / STATE, tensors, meta)
 
+    def save_model(self, name: str) -> Path:
+        """Weights-only checkpoint ``<out>/<name>`` (JSON path), with :attr:`encoder_file` beside it."""
+        json_path = checkpoint.save(self.out / name, checkpoint.policy_tensors(self.selector, self.predictor), self._meta())
+        if self.encoder_file is not None:
+            checkpoint.ship_encoder(self.out / name, self.encoder_file)
+        return json_path
+
     def save_policy(self) -> Path:
-        return checkpoint.save(self.out / POLICY, checkpoint.policy_tensors(self.selector, self.predictor), self._meta())
+        return self.save_model(POLICY)
 
     def resume(self) -> bool:
         """Load ``<out>/train_state`` if present; returns whether training resumes from it."""
@@ -197,7 +205,7 @@ class Trainer:
             self.lineage["phases_done"].append(phase)
             self.save_state(None, None)
             if phase == "predictor" and self.ctx.is_main:
-                checkpoint.save(self.out / GOAL_RVT, checkpoint.policy_tensors(self.selector, self.predictor), self._meta())
+                self.save_model(GOAL_RVT)
         if self.ctx.is_main:
             self.save_policy()
         if self.writer is not None:

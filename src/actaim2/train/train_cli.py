@@ -10,7 +10,8 @@ Examples:
 Views of the visually successful ``train_seen`` trajectories are rendered once and cached in
 the dataset folder; 10% of those trajectories (by id hash) are held out for validation curves.
 After the predictor phase its weights are also saved as ``<out>/goal_rvt`` (the Goal-RVT
-baseline: the predictor fed the true z).
+baseline: the predictor fed the true z). Beside each model goes the dataset's encoder E
+(``<stem>.encoder.pt``), which fine-tuning and Goal-RVT need to embed new observations.
 """
 from __future__ import annotations
 
@@ -37,7 +38,7 @@ def main(args: argparse.Namespace) -> int:
 
     import torch.distributed as dist
 
-    from actaim2.data.labelling import embeddings_encoder_digest
+    from actaim2.data.labelling import dataset_encoder, embeddings_encoder_digest
     from actaim2.data.splits import TRAIN
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.perception.config import load_perception_config
@@ -74,6 +75,10 @@ def main(args: argparse.Namespace) -> int:
     # for fine-tuning must be embedded by the same E (bag2dataset --checkpoint and finetune check it).
     # Set after a resume too: the state's dataset digest, which covers embeddings.npz, is this dataset's.
     trainer.lineage["encoder_digest"] = embeddings_encoder_digest(args.data)
+    trainer.encoder_file = dataset_encoder(args.data)
+    if trainer.lineage["encoder_digest"] is not None and trainer.encoder_file is None and ctx.is_main:
+        print(f"actaim2 train: no encoder file of digest {trainer.lineage['encoder_digest']} found for {args.data}: "
+              f"the checkpoints will have none beside them (fine-tuning then needs bag2dataset --encoder)")
     results = trainer.run()
     if ctx.is_main:
         print(json.dumps({phase: {"steps": r.steps, "seconds": round(r.seconds, 1), "last": r.last_metrics}
