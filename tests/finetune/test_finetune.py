@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from actaim2 import cli
-from actaim2.data.labelling import EMBEDDINGS_FILE
+from actaim2.data.labelling import EMBEDDINGS_FILE, encoder_digest
 from actaim2.finetune.clusters import cluster_table, format_table
 from actaim2.finetune.finetune import FinetuneError, check_encoder
 from actaim2.finetune.heldout import heldout_rows
@@ -89,6 +89,7 @@ def test_finetune_lowers_the_training_loss_and_writes_a_loadable_checkpoint_with
     assert lineage["phases_done"] == ["joint"] and lineage["init_from"]["path"] == str(stem)
     with np.load(converted.dataset / EMBEDDINGS_FILE) as f:
         assert lineage["encoder_digest"] == str(f["encoder_digest"])
+    assert encoder_digest(checkpoint.encoder_path(out / "policy")) == lineage["encoder_digest"]  # E travels with it
     model = PolicyModel.load(out / "policy", config, "cpu")  # as policy_node loads it
     assert model.clusters == PARENT_CONFIG.selector.clusters
     model.warm_up()
