@@ -77,6 +77,9 @@ PARAMETERS = {
     "use_cloud": (False, "also avoid the fused cloud (INIT and REACH), except near the grasp point; "
                          "the cloud must be free of robot points (fusion_node remove_robot_fused: true)"),
     "cloud_topic": ("/fused_points", "PointCloud2 in world used when use_cloud is true"),
+    "cloud_wait": (5.0, "s (wall) a goal planned around the cloud (INIT, REACH, GRASP) waits for a cloud stamped at or "
+                        "after its keypose's stamp (the views it was predicted from); none by then: the goal fails "
+                        "saying so. An older cloud may show another scene (before a reset) or the object elsewhere"),
     "cloud_clearance": (_PLAN.cloud_clearance, "m: cloud points this close to the grasp point are not obstacles"),
     "approach_distance": (_PLAN.approach_distance, "m: straight last REACH segment when the arm starts off the approach axis"),
     "via_speed_fraction": (_PLAN.via_speed_fraction, "speed at the pre-grasp via point, fraction of the line's top speed"),
@@ -118,8 +121,11 @@ class ControlNode(Node):
         self._runner = KeyposeRunner(self._planner, self._executor)
         self._busy = threading.Lock()
         self._keypose_pub = self.create_publisher(KeyposeMsg, "/keypose", KEYPOSE_QOS)
-        self._cloud_topic, self._have_cloud = p["cloud_topic"], False
-        if p["use_cloud"]:
+        self._cloud_topic, self._have_cloud, self._use_cloud = p["cloud_topic"], False, bool(p["use_cloud"])
+        self._cloud_wait = float(p["cloud_wait"])
+        self._cloud_stamp_ns = -1  # header stamp of the planner's cloud (-1: none yet)
+        self._cloud_arrived = threading.Condition()
+        if self._use_cloud:
             self.create_subscription(PointCloud2, p["cloud_topic"], self._on_cloud, qos_profile_sensor_data, callback_group=group)
         self._server = ActionServer(
             self, ExecuteKeypose, "/execute_keypose", self._execute,
@@ -145,6 +151,27 @@ class ControlNode(Node):
             self.get_logger().info(f"obstacle cloud from {self._cloud_topic}: {len(points)} points (kept up to date)")
             self._have_cloud = True
         self._planner.set_cloud(points)
+        with self._cloud_arrived:
+            self._cloud_stamp_ns = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+            self._cloud_arrived.notify_all()
+
+    def _wait_for_cloud(self, k: KeyposeMsg) -> str:
+        """Why the goal cannot be planned: "" once the planner's cloud is stamped at or after the keypose
+        (the views it was predicted from; a keypose without a stamp takes any cloud).
+
+        A cloud of 1e5 points can reach this node after the views it was fused with have reached the
+        policy and its keypose has come back, on a busy machine: planned around the previous cloud,
+        the first INIT of a parity run once met the cabinet sim_node starts with instead of the
+        faucet it had been reset to (every IK solution "collides")."""
+        if not self._use_cloud or k.phase == KeyposeMsg.PHASE_MANIPULATE:  # the planner's cloud phases
+            return ""
+        wanted = k.header.stamp.sec * 10**9 + k.header.stamp.nanosec
+        with self._cloud_arrived:
+            if self._cloud_arrived.wait_for(lambda: self._cloud_stamp_ns >= wanted, self._cloud_wait):
+                return ""
+            newest = "none yet" if self._cloud_stamp_ns < 0 else f"the newest is stamped {self._cloud_stamp_ns / 1e9:.3f} s"
+        return (f"no obstacle cloud on {self._cloud_topic} stamped at or after the keypose ({wanted / 1e9:.3f} s) within "
+                f"{self._cloud_wait:g} s ({newest}): not planned around an older scene")
 
     def _check_goal(self, goal: ExecuteKeypose.Goal) -> str:
         """What is wrong with a goal ("" when nothing)."""
@@ -180,6 +207,9 @@ class ControlNode(Node):
                 bool(k.gripper_closed),
             )
             scaling = float(goal.velocity_scaling) or self._default_scaling
+            stale = self._wait_for_cloud(k)
+            if stale:
+                return self._finish(handle, Outcome(False, stale, float("nan"), float("nan"), "cloud"))
             self._executor.cancel_requested = lambda: handle.is_cancel_requested
             self._executor.wait_for_joint_states(self._joint_states_wait)  # after start-up discovery takes seconds
 

@@ -237,20 +237,23 @@ def test_cancel_stops_the_arm_within_half_a_second(start_node, ros_node, panda):
 
 def test_topic_fallback_and_cloud_obstacles(start_node, ros_node, panda):
     """Without the arm's action server the JTC topic moves the arm; with use_cloud a /fused_points
-    plate over one target makes it unreachable, with the reason."""
+    plate over one target makes it unreachable, with the reason; a stamped keypose is planned around
+    a cloud at least as new as it, never an older one."""
     from action_msgs.msg import GoalStatus
+    from builtin_interfaces.msg import Time
     from rclpy.qos import qos_profile_sensor_data
     from sensor_msgs.msg import PointCloud2
 
     from actaim2_perception.pointcloud2 import to_msg
 
     recorder, client, control = start_cell(start_node, ros_node, {
-        "arm_action": "/no_such_controller/follow_joint_trajectory", "server_wait": 0.5, "use_cloud": True})
+        "arm_action": "/no_such_controller/follow_joint_trajectory", "server_wait": 0.5, "use_cloud": True, "cloud_wait": 3.0})
     g = np.linspace(-0.1, 0.1, 21)
     plate = np.stack(np.meshgrid(0.55 + g, g), -1).reshape(-1, 2)  # 20 cm square, 40 cm high
-    cloud = to_msg(np.column_stack([plate, np.full(len(plate), 0.40)]).astype(np.float32), frame_id="world")
+    plate = np.column_stack([plate, np.full(len(plate), 0.40)]).astype(np.float32)
+    latest = {"cloud": to_msg(plate, frame_id="world")}
     publisher = ros_node.create_publisher(PointCloud2, "/fused_points", qos_profile_sensor_data)
-    timer = ros_node.create_timer(0.1, lambda: publisher.publish(cloud))
+    timer = ros_node.create_timer(0.1, lambda: publisher.publish(latest["cloud"]))
     assert wait_for(lambda: "obstacle cloud" in control.output(), 20.0), control.output()
 
     under_the_plate = [0.55, 0.0, 0.25]  # the wrist would go through the plate
@@ -263,4 +266,26 @@ def test_topic_fallback_and_cloud_obstacles(start_node, ros_node, panda):
     assert status == GoalStatus.STATUS_SUCCEEDED and result.success, result.message
     position_error, orientation_error = tcp_error(panda, recorder, position, DOWN_QUAT)
     assert position_error <= 0.005 and orientation_error <= np.radians(3.0)
+
+    # A plate over the mirrored target, stamped 100 s; a keypose predicted from views of 200 s waits
+    # for the cloud of 200 s, which (1 s later) shows the plate gone: planned around it, the target
+    # is reached (planned around the plate it would collide, as above).
+    mirrored = [0.3, 0.35, 0.35]
+    over = (plate + np.array([mirrored[0] - 0.55, mirrored[1], 0.10], np.float32)).astype(np.float32)
+    latest["cloud"] = to_msg(over, frame_id="world", stamp=Time(sec=100))
+    time.sleep(0.5)
+    newer = to_msg(np.array([[1.3, -0.5, 0.9]], np.float32), frame_id="world", stamp=Time(sec=200))
+    later = threading.Timer(1.0, lambda: latest.update(cloud=newer))
+    later.start()
+    goal = client.goal(0, mirrored, DOWN_QUAT, False)
+    goal.keypose.header.stamp = Time(sec=200)
+    status, result = client.execute(goal)
+    later.join()
+    assert status == GoalStatus.STATUS_SUCCEEDED and result.success, result.message
+    # No cloud as new as the keypose within cloud_wait: the goal fails saying so, nothing moves.
+    goal.keypose.header.stamp = Time(sec=300)
+    status, result = client.execute(goal)
+    assert status == GoalStatus.STATUS_ABORTED and not result.success
+    assert "no obstacle cloud on /fused_points stamped at or after the keypose (300.000 s) within 3 s" in result.message, result.message
+    assert "the newest is stamped 200.000 s" in result.message, result.message
     timer.cancel()
