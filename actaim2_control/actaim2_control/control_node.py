@@ -24,6 +24,7 @@ from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+from rclpy.time import Time
 from sensor_msgs.msg import PointCloud2
 
 from actaim2.control.collision import CollisionChecker, Workspace
@@ -152,7 +153,7 @@ class ControlNode(Node):
             self._have_cloud = True
         self._planner.set_cloud(points)
         with self._cloud_arrived:
-            self._cloud_stamp_ns = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+            self._cloud_stamp_ns = Time.from_msg(msg.header.stamp).nanoseconds
             self._cloud_arrived.notify_all()
 
     def _wait_for_cloud(self, k: KeyposeMsg) -> str:
@@ -165,7 +166,7 @@ class ControlNode(Node):
         faucet it had been reset to (every IK solution "collides")."""
         if not self._use_cloud or k.phase == KeyposeMsg.PHASE_MANIPULATE:  # the planner's cloud phases
             return ""
-        wanted = k.header.stamp.sec * 10**9 + k.header.stamp.nanosec
+        wanted = Time.from_msg(k.header.stamp).nanoseconds
         with self._cloud_arrived:
             if self._cloud_arrived.wait_for(lambda: self._cloud_stamp_ns >= wanted, self._cloud_wait):
                 return ""
