@@ -9,15 +9,20 @@ again, holding all its recorded messages) and publishes the CDR bytes as they ar
 Never fatal: a topic whose type has no Python class here or whose definition rosbags cannot
 parse, a message that does not deserialize, a truncated or unreadable file are each reported
 (with topic and message index) and skipped while the rest plays. The node ends by itself when
-the bag is played (unless ``loop``), logging what it published and its timing error.
+the bag is played (unless ``loop``), logging what it published and its timing error. Before it
+ends it waits (``wait_for_all_acked``, as ``ros2 bag play --wait-for-all-acked``) until every
+reliable subscriber has acknowledged every message: a process that exits with messages still in
+its DDS history drops them, and a subscriber would miss the end of the bag.
 """
 from __future__ import annotations
 
 import json
 import threading
+import time
 from pathlib import Path
 
 from builtin_interfaces.msg import Time
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
@@ -40,6 +45,7 @@ PARAMETERS = {
     "clock_rate": (0.0, "Hz: publish the bag time on /clock at this rate (for use_sim_time nodes); 0 = no /clock"),
     "start_delay": (0.5, "s between creating the publishers and the first message (lets subscribers match)"),
     "wait_for_subscribers": ([""], "published topics that must each have a subscriber before playback starts; [\"\"] = none"),
+    "wait_for_all_acked": (5.0, "s to wait at the end until reliable subscribers have acknowledged every message; 0 = exit at once"),
     "summary_file": ("", "write the final summary as JSON to this file (scripts, benchmarks); empty = none"),
 }
 
@@ -52,6 +58,7 @@ class BagPlayer(Node):
             raise ValueError("parameter 'bag' is empty: give a bag directory or an .mcap/.db3 file")
         self._stop = stop  # set on Ctrl-C / SIGTERM, or by _play when the bag is played
         self._summary_file = str(p["summary_file"])
+        self._ack_timeout = float(p["wait_for_all_acked"])
         remap = parse_remaps([r for r in p["remap"] if r])
         options = PlayOptions(
             rate=float(p["rate"]),
@@ -85,6 +92,7 @@ class BagPlayer(Node):
         if missing := [t for t in awaited if t not in by_output]:
             raise ValueError(f"wait_for_subscribers names topics this bag does not play: {missing} (played: {sorted(by_output)})")
         self._awaited = [by_output[t] for t in awaited]
+        self._publishers = list(by_output.values())
         self._player = Player(source, options, publishers, clock, stop)
         self._thread = threading.Thread(target=self._play, args=(float(p["start_delay"]),), name="bag_player", daemon=True)
         self._thread.start()
@@ -107,6 +115,14 @@ class BagPlayer(Node):
 
     def finish(self) -> int:
         self._thread.join()
+        if self._ack_timeout > 0:
+            deadline = time.monotonic() + self._ack_timeout  # one budget for all publishers together
+            unacked = [
+                p.topic_name for p in self._publishers
+                if not p.wait_for_all_acked(Duration(seconds=max(0.0, deadline - time.monotonic())))
+            ]
+            if unacked:
+                self.get_logger().warning(f"not every subscriber acknowledged every message within {self._ack_timeout:g} s on {unacked}")
         stats = self._player.stats
         timing = stats.timing_ms()
         self.get_logger().info(
