@@ -78,10 +78,10 @@ class Recorder:
 class KeyposeClient:
     def __init__(self, node) -> None:
         from actaim2_msgs.action import ExecuteKeypose
-        from rclpy.action import ActionClient
+        from actaim2_control.action_client import LockedActionClient
 
         self.Action = ExecuteKeypose
-        self.client = ActionClient(node, ExecuteKeypose, "/execute_keypose")
+        self.client = LockedActionClient(node, ExecuteKeypose, "/execute_keypose")
         self.feedback = []
 
     def goal(self, phase, position, quat_xyzw, closed, scaling=0.0, frame="world"):

@@ -204,11 +204,10 @@ def test_point_cloud_round_trips_exactly_with_sensor_qos(ros_node, peer) -> None
 # --- (c) action ---------------------------------------------------------------------------
 
 def _action_client(node):
-    from rclpy.action import ActionClient
-
+    from actaim2_control.action_client import LockedActionClient
     from actaim2_msgs.action import ExecuteKeypose
 
-    client = ActionClient(node, ExecuteKeypose, "/execute_keypose")
+    client = LockedActionClient(node, ExecuteKeypose, "/execute_keypose")
     assert client.wait_for_server(timeout_sec=DISCOVERY_TIMEOUT), "/execute_keypose not discovered"
     return client
 

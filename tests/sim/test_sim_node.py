@@ -17,7 +17,6 @@ import pytest
 from actaim2_msgs.srv import ResetScene
 from builtin_interfaces.msg import Duration
 from control_msgs.action import FollowJointTrajectory, GripperCommand
-from rclpy.action import ActionClient
 from rclpy.qos import qos_profile_sensor_data
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2, PointField
@@ -25,6 +24,7 @@ from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from actaim2.robots import load_robot_spec
+from actaim2_control.action_client import LockedActionClient
 from actaim2_perception.pointcloud2 import from_msg
 from actaim2_perception.transforms import TF_STATIC_LISTENER_QOS, transform_to_matrix
 from harness import NodeProcess, wait_for
@@ -145,7 +145,7 @@ def trajectory(names, points) -> FollowJointTrajectory.Goal:
     return goal
 
 
-def send(client: ActionClient, goal, timeout: float = 30.0):
+def send(client: LockedActionClient, goal, timeout: float = 30.0):
     """(accepted, result) of one goal, waiting for both."""
     future = client.send_goal_async(goal)
     assert wait_for(future.done, timeout), "no goal response"
@@ -166,7 +166,7 @@ def current_arm(joints: Inbox) -> np.ndarray:
 
 @pytest.fixture
 def arm_client(kinect_node, ros_node):
-    client = ActionClient(ros_node, FollowJointTrajectory, "/joint_trajectory_controller/follow_joint_trajectory")
+    client = LockedActionClient(ros_node, FollowJointTrajectory, "/joint_trajectory_controller/follow_joint_trajectory")
     assert client.wait_for_server(timeout_sec=60.0), kinect_node.output()[-3000:]
     return client  # destroyed with ros_node (destroying it while the executor spins races)
 
@@ -226,7 +226,7 @@ def test_jtc_topic_moves_the_arm(kinect_node, ros_node, arm_client):
 
 def test_gripper_reaches_or_stalls(kinect_node, ros_node):
     """Positions are gap widths (m between the fingers), as the message says."""
-    client = ActionClient(ros_node, GripperCommand, "/gripper_controller/gripper_cmd")
+    client = LockedActionClient(ros_node, GripperCommand, "/gripper_controller/gripper_cmd")
     assert client.wait_for_server(timeout_sec=60.0)
     joints = Inbox(ros_node, JointState, "/joint_states")
     goal = GripperCommand.Goal()
@@ -278,8 +278,8 @@ def test_gripper_closed_on_a_handle_stalls_with_default_parameters(kinect_node, 
     assert wait_for(future.done, 60.0) and future.result().success, future.result()
     path = handle_grasp_path(scene)
 
-    arm = ActionClient(ros_node, FollowJointTrajectory, "/joint_trajectory_controller/follow_joint_trajectory")
-    gripper = ActionClient(ros_node, GripperCommand, "/gripper_controller/gripper_cmd")
+    arm = LockedActionClient(ros_node, FollowJointTrajectory, "/joint_trajectory_controller/follow_joint_trajectory")
+    gripper = LockedActionClient(ros_node, GripperCommand, "/gripper_controller/gripper_cmd")
     assert arm.wait_for_server(timeout_sec=60.0) and gripper.wait_for_server(timeout_sec=60.0)
     accepted, result = send(arm, trajectory(ARM, [(1.5 + 0.25 * i, q) for i, q in enumerate(path)]))
     assert accepted and result.error_code == FollowJointTrajectory.Result.SUCCESSFUL, result.error_string

@@ -15,10 +15,10 @@ import pytest
 from action_msgs.msg import GoalStatus
 from builtin_interfaces.msg import Duration
 from control_msgs.action import FollowJointTrajectory, GripperCommand
-from rclpy.action import ActionClient
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from actaim2.robots import load_robot_spec
+from actaim2_control.action_client import LockedActionClient
 from harness import wait_for
 
 SPEC = load_robot_spec("panda")
@@ -43,7 +43,7 @@ def gripper_beyond_its_limit() -> GripperCommand.Goal:
     return goal
 
 
-def accepted(client: ActionClient, goal, feedback=None):
+def accepted(client: LockedActionClient, goal, feedback=None):
     sent = client.send_goal_async(goal, feedback_callback=feedback)
     assert wait_for(sent.done, 30.0) and sent.result().accepted
     return sent.result().get_result_async()
@@ -66,8 +66,8 @@ def interrupt(node) -> float:
 @pytest.mark.parametrize("state", ["idle", "trajectory_and_gripper_goals", "goal_in_flight"])
 def test_sigint_ends_the_node_promptly(start_node, ros_node, state):
     node = start_node("actaim2_sim", "sim_node", PARAMS)
-    arm = ActionClient(ros_node, FollowJointTrajectory, "/joint_trajectory_controller/follow_joint_trajectory")
-    gripper = ActionClient(ros_node, GripperCommand, "/gripper_controller/gripper_cmd")
+    arm = LockedActionClient(ros_node, FollowJointTrajectory, "/joint_trajectory_controller/follow_joint_trajectory")
+    gripper = LockedActionClient(ros_node, GripperCommand, "/gripper_controller/gripper_cmd")
     assert arm.wait_for_server(timeout_sec=60.0) and gripper.wait_for_server(timeout_sec=60.0), node.output()
     if state == "idle":
         interrupt(node)
