@@ -11,23 +11,28 @@ simulator, loaded models) across tasks. Three executors, one interface (:func:`r
   SIGKILL) takes its workers with it within :data:`ORPHAN_POLL_S` (they would otherwise go on
   simulating the tasks already queued to them, then wait forever);
 * ``ray_address`` - N Ray actors on a cluster (``"auto"``, ``"ray://host:10001"``, or
-  ``"local"`` to start a private local instance). Ray is an optional extra
-  (``pip install -e src/actaim2[ray]``); without it this executor says so.
+  ``"local"`` to start a private local instance, pinned to 127.0.0.1 like the project's DDS).
+  Ray is an optional extra (``pip install -e src/actaim2[ray]``); without it this executor says so.
 
 Results arrive in completion order: callers key them by task (e.g. append to a JSONL).
 """
 from __future__ import annotations
 
-import importlib
+import importlib.util
 import multiprocessing as mp
 import os
 import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from types import ModuleType
 from typing import Any, Callable, Iterable, Iterator
 
 IN_FLIGHT_PER_WORKER = 2
 ORPHAN_POLL_S = 1.0
+LOOPBACK = "127.0.0.1"
+# On Linux, Ray swaps a loopback node address for the machine's interface address (so that other
+# nodes could join) unless "clusters" are off, which Ray reads from this variable once, on import.
+RAY_CLUSTER_VAR = "RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"
 
 _WORKER: Any = None
 
@@ -87,25 +92,38 @@ def _processes(make, setup, tasks: Iterable[Any], workers: int) -> Iterator[Any]
 
 
 def ray_available() -> str | None:
-    """None when Ray can be imported, else why not."""
-    try:
-        importlib.import_module("ray")
-    except ImportError as exc:
-        return f"Ray is not installed ({exc}): pip install -e src/actaim2[ray]"
+    """None when Ray is installed, else why not. Looks without importing: importing Ray fixes
+    its settings (see :data:`RAY_CLUSTER_VAR`) before a local instance could pin them."""
+    if importlib.util.find_spec("ray") is None:
+        return "Ray is not installed: pip install -e src/actaim2[ray]"
     return None
+
+
+def _start_local_ray(ray: ModuleType, workers: int) -> str:
+    """A private Ray instance whose processes use and listen on loopback only, and its GCS address;
+    RuntimeError when Ray was imported in this process before its cluster setting was turned off."""
+    ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False, _node_ip_address=LOOPBACK)
+    address = ray.get_runtime_context().gcs_address
+    if not address.startswith(f"{LOOPBACK}:"):
+        ray.shutdown()
+        raise RuntimeError(f"the local Ray instance came up on {address}, not loopback: set {RAY_CLUSTER_VAR}=0 "
+                           "before anything imports ray")
+    return address
 
 
 def _ray(make, setup, tasks: Iterable[Any], workers: int, address: str) -> Iterator[Any]:
     problem = ray_available()
     if problem:
         raise RuntimeError(problem)
+    if address == "local":
+        os.environ.setdefault(RAY_CLUSTER_VAR, "0")  # before the import below
     import ray
     from ray.util import ActorPool
 
     started_here = not ray.is_initialized()
     if started_here:
         if address == "local":
-            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+            print(f"Ray: a local instance at {_start_local_ray(ray, workers)} (loopback only)", flush=True)
         else:
             ray.init(address=address, log_to_driver=False)
 
