@@ -41,7 +41,8 @@ def wait_for(predicate: Callable[[], bool], timeout: float, interval: float = 0.
 class NodeProcess:
     """A node started through `ros2 run`, its output captured in a log file."""
 
-    def __init__(self, package: str, executable: str, params: dict | None, args: list[str], log_dir: Path):
+    def __init__(self, package: str, executable: str, params: dict | None, args: list[str], log_dir: Path,
+                 env: dict[str, str] | None = None):
         import yaml
 
         self.name = f"{package}/{executable}"
@@ -52,7 +53,8 @@ class NodeProcess:
             cmd += ["--params-file", str(params_file)]
         self.log_path = log_dir / f"{executable}.log"
         self._log = open(self.log_path, "w")
-        self.proc = subprocess.Popen(cmd, stdout=self._log, stderr=subprocess.STDOUT, start_new_session=True)
+        self.proc = subprocess.Popen(cmd, stdout=self._log, stderr=subprocess.STDOUT, start_new_session=True,
+                                     env={**os.environ, **(env or {})})
 
     def output(self) -> str:
         if not self._log.closed:

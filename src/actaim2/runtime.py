@@ -9,6 +9,12 @@ Fast DDS's default shared-memory segment (0.5 MB) is too small for this project'
 project's Fast DDS profile (``config/fastdds.xml``: a 32 MB SHM transport plus the builtin
 ones) is the default too. Both only set environment variables that the user has not set,
 so the library stays importable without ROS and a user's own choice wins.
+
+Shared memory has one known failure, upstream: a node SIGKILLed and restarted while its peers
+run can come back deaf to them (Fast DDS 2.14 reuses the dead process's SHM port and deletes its
+segment while live writers still write into it; eProsima/Fast-DDS#5053, #4737, no fix released).
+``config/fastdds_udp.xml`` (:data:`FASTDDS_UDP_PROFILE`: UDPv4 on 127.0.0.1, no SHM) is the
+profile for a node restarted after a crash: its peers then reach it over UDP.
 """
 from __future__ import annotations
 
@@ -19,6 +25,7 @@ DISCOVERY_RANGE_VAR = "ROS_AUTOMATIC_DISCOVERY_RANGE"
 DEFAULT_DISCOVERY_RANGE = "LOCALHOST"
 FASTDDS_PROFILE_VAR = "FASTRTPS_DEFAULT_PROFILES_FILE"
 FASTDDS_PROFILE = Path(__file__).resolve().parent / "config" / "fastdds.xml"
+FASTDDS_UDP_PROFILE = FASTDDS_PROFILE.with_name("fastdds_udp.xml")
 
 
 def apply_ros_defaults() -> None:

@@ -5,6 +5,11 @@ One graph serves the module; each test starts its own runner: two episodes throu
 policy (stamps prove that no view of an old scene is used after a reset), Ctrl-C during
 MANIPULATE (the arm's goal is cancelled), the heuristic sampler baseline, and policy_node killed
 and restarted mid-run (the episode fails with the reason, the run recovers, nothing hangs).
+
+The restarted policy_node uses the project's crash-restart profile (UDP on loopback, no shared
+memory; actaim2.runtime says why): with shared memory, Fast DDS 2.14 can leave a node restarted
+after SIGKILL deaf to its live peers (eProsima/Fast-DDS#5053), which a CI run hit here: the
+restarted node never answered /sample_mode.
 """
 from __future__ import annotations
 
@@ -17,6 +22,7 @@ from pathlib import Path
 
 import pytest
 
+from actaim2.runtime import FASTDDS_PROFILE_VAR, FASTDDS_UDP_PROFILE
 from harness import NodeProcess, wait_for
 
 SCENE = {"category": "storage_furniture", "instance": 0, "seed": 0}
@@ -38,14 +44,15 @@ class Graph:
         }
         self.restart_policy()
 
-    def _start(self, package: str, executable: str, params: dict) -> NodeProcess:
+    def _start(self, package: str, executable: str, params: dict, env: dict[str, str] | None = None) -> NodeProcess:
         self.runs += 1
         folder = self.logs / f"{self.runs:02d}_{executable}"
         folder.mkdir()
-        return NodeProcess(package, executable, params, [], folder)
+        return NodeProcess(package, executable, params, [], folder, env)
 
-    def restart_policy(self) -> None:
-        self.nodes["policy_node"] = self._start("actaim2_policy", "policy_node", self.policy_params)
+    def restart_policy(self, after_crash: bool = False) -> None:
+        env = {FASTDDS_PROFILE_VAR: str(FASTDDS_UDP_PROFILE)} if after_crash else None
+        self.nodes["policy_node"] = self._start("actaim2_policy", "policy_node", self.policy_params, env)
 
     def runner(self, **params) -> tuple[NodeProcess, Path]:
         jsonl = self.logs / f"episodes_{self.runs + 1:02d}.jsonl"
@@ -164,7 +171,7 @@ def test_policy_node_killed_and_restarted_mid_run_fails_that_episode_and_the_run
     os.killpg(policy.proc.pid, signal.SIGKILL)  # no goodbye: as a crash
     policy.stop()
     assert wait_for(lambda: any(e.episode == 0 and e.event == 1 for e in listener.events), 60.0), runner.output()[-4000:]
-    graph.restart_policy()
+    graph.restart_policy(after_crash=True)
     assert finished(runner, 240) == 0, runner.output()[-4000:]
     first, second = records(jsonl)
     assert not first["success"] and "/predict_keypose" in first["note"] and "stopped or restarted" in first["note"], first
