@@ -3,9 +3,7 @@
 A thin adapter over :class:`actaim2.policy.inference.PolicyModel`: it keeps the latest
 /ortho_views each model accepts (same perception configuration digest as the checkpoint's,
 else refused with the reason), answers the two services from them, stamps every keypose with the
-stamp of the views it used, and publishes the mode in use on /interaction_mode. A keypose with
-the gripper open is the most likely one whose open hand (``robot``'s) clears the views' points
-(:mod:`actaim2.policy.clearance`), as the library evaluation chooses it.
+stamp of the views it used, and publishes the mode in use on /interaction_mode.
 
 Start-up: load and check the checkpoint against the serving perception configuration, warm the
 models up, then create the services and log "policy_node ready", so a client that found the
@@ -35,7 +33,6 @@ from actaim2.policy.locate import COMMITTED, installed_folders, resolve_checkpoi
 from actaim2.policy.requests import NO_VIEWS, RequestError, check_cluster, check_embedding, check_fresh, check_phase
 from actaim2.policy.views import Views, accept_views
 from actaim2.ros_main import spin
-from actaim2.robots import load_robot_spec
 from actaim2.ros_params import declare_parameters
 
 VIEWS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)  # as fusion_node publishes them
@@ -48,9 +45,6 @@ PARAMETERS = {
     "perception_config": ("ring5", "the serving perception configuration, as fusion_node's: rig name or PerceptionConfig "
                                    "YAML; a checkpoint trained under another one is refused, naming the differing fields"),
     "device": ("auto", "auto (CUDA when present, else CPU) | cpu | cuda"),
-    "robot": ("panda", "the robot executing the keyposes (preset or robot YAML): a keypose with the gripper open is the "
-                       "most likely one whose open hand clears the views' points (actaim2.policy.clearance); "
-                       "empty = the plain argmax"),
     "torch_threads": (1, "CPU threads for inference; 1 next to the simulator and fusion on 2 cores (a second "
                          "spinning OpenMP thread made each call 10x slower under load)"),
     "views_topic": ("/ortho_views", "views for the mode selector, and for the predictor unless predictor_views_topic is set"),
@@ -77,8 +71,7 @@ class PolicyNode(Node):
         try:
             serving = load_perception_config(p["perception_config"])
             stem = resolve_checkpoint(p["checkpoint"], installed_folders())
-            hand = load_robot_spec(p["robot"]).hand if p["robot"] else None
-            self._model = PolicyModel.load(stem, serving, p["device"], hand=hand)
+            self._model = PolicyModel.load(stem, serving, p["device"])
             warm = self._model.warm_up()
         except (PolicyLoadError, FileNotFoundError, ValueError) as exc:
             self._load_error = f"checkpoint failed to load: {exc}"

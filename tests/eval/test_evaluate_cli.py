@@ -85,7 +85,7 @@ def test_smoke_interrupted_and_resumed(checkpoints, tmp_path) -> None:
     for r in rows:
         assert seeds.setdefault((r["object"], r["slot"]), r["reset_seed"]) == r["reset_seed"]
     tables = (out / "tables.md").read_text()
-    for text in ("Command: `actaim2 evaluate", "weights sha256", "hand clears the views' points, clearance(positions=4", "## Table 1", "**Seen objects**", "**Unseen instances**",
+    for text in ("Command: `actaim2 evaluate", "weights sha256", "## Table 1", "**Seen objects**", "**Unseen instances**",
                  "**Unseen categories**", "| ActAIM2 |", "| VQVAE-RVT |", "| ActAIM (CVAE) |", "| Goal-RVT (oracle) |",
                  "| Random sampler |", "## Table 2", "## Acceptance checks", "Where2Act", "## Figures"):
         assert text in tables, text

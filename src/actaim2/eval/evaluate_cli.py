@@ -136,7 +136,6 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.eval.tasks import plan_tasks
     from actaim2.eval.worker import EvalWorker, WorkerSetup
     from actaim2.perception.config import load_perception_config
-    from actaim2.policy.clearance import ClearanceConfig, describe_clearance
 
     preset = _preset(args)
     try:
@@ -162,8 +161,8 @@ def main(args: argparse.Namespace) -> int:
         gmm = data_collection_samplers(args.data) if "data_collection" in methods else None
         encoder = _encoder(args, stems["goal_rvt"]) if "goal_rvt" in methods else None
         run = {"eval_set_version": EVAL_SET_VERSION, "robot": args.robot, "rig": perception.rig,
-               "methods": {m: f"{described[m]['weights_sha256']} {describe_clearance(ClearanceConfig())}" if m in described
-                           else ("dataset " + _data_digest(args.data) if m == "data_collection" else m) for m in methods}}
+               "methods": {m: described.get(m, {}).get("weights_sha256") or ("dataset " + _data_digest(args.data)
+                                                                          if m == "data_collection" else m) for m in methods}}
         check_run(args.out, run)
     except (ValueError, FileNotFoundError, RunMismatchError) as exc:
         print(f"actaim2 evaluate: {exc}", file=sys.stderr)
@@ -267,11 +266,6 @@ def _header(args, preset: str, described: dict, render_path: str, n_objects: int
         lines.append(f"- {method}: checkpoint `{d['path']}`, weights sha256 `{d['weights_sha256']}`, "
                      f"dataset {d['dataset_digest']}, views {d['perception_digest']}, predictor reads "
                      f"{'+'.join(d['predictor_inputs'])} of {d['predictor_view']} view(s)")
-    if described:
-        from actaim2.policy.clearance import ClearanceConfig, describe_clearance
-
-        lines.append(f"- learned rows' keyposes with the hand open: the most likely whose open {args.robot} hand clears "
-                     f"the views' points, {describe_clearance(ClearanceConfig())} (actaim2.policy.clearance)")
     if args.data is not None:
         lines.append(f"- dataset `{args.data}` digest {_data_digest(args.data)}")
     return lines

@@ -74,7 +74,7 @@ class EvalWorker:
         if method == "data_collection":
             return SamplerSource(None, s.gmm or {}, self.screen_ik, spec.home, s.max_samples)
         stem = s.checkpoints[method]
-        model = PolicyModel.load(stem, perception_of(stem), s.device, hand=self.env.spec.hand)  # as policy_node with its robot
+        model = PolicyModel.load(stem, perception_of(stem), s.device)
         if method == "goal_rvt":
             from actaim2.data.encoder import ImageEncoder
 

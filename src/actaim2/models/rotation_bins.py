@@ -61,31 +61,6 @@ def bins_to_quat(bins: np.ndarray, n_bins: int = ROTATION_BINS) -> np.ndarray:
     return np.where(q[:, 3:] < 0, -q, q)
 
 
-def ranked_bins(log_probs: np.ndarray, per_axis: int, separation: int) -> tuple[np.ndarray, np.ndarray]:
-    """(3, n_bins) log-probabilities of the three Euler angles -> bin triples (M, 3), best first, and their scores (M,).
-
-    The axes are independent outputs, so a triple's log-probability is the sum of its three.
-    Per axis the ``per_axis`` best bins more than ``separation`` bins apart (circularly) are
-    kept, distinct angles rather than the neighbours of one peak; the M = per_axis^3 triples
-    are ordered by their summed log-probability (the first is the per-axis argmax).
-    """
-    log_probs = np.asarray(log_probs, dtype=np.float64)
-    n_bins = log_probs.shape[-1]
-    kept = []
-    for axis in log_probs:
-        chosen: list[int] = []
-        for b in np.argsort(-axis, kind="stable"):
-            if all(min(abs(int(b) - c), n_bins - abs(int(b) - c)) > separation for c in chosen):
-                chosen.append(int(b))
-                if len(chosen) == per_axis:
-                    break
-        kept.append(chosen)
-    triples = np.array(list(itertools.product(*kept)), dtype=np.int64)
-    scores = log_probs[0, triples[:, 0]] + log_probs[1, triples[:, 1]] + log_probs[2, triples[:, 2]]
-    order = np.argsort(-scores, kind="stable")
-    return triples[order], scores[order]
-
-
 def _euler_solutions(rotations: Rotation) -> np.ndarray:
     """(N, 2, 3) both Euler-angle solutions in degrees (the second has |beta| >= 90)."""
     with warnings.catch_warnings():  # at gimbal lock SciPy warns and sets gamma = 0: still a valid solution

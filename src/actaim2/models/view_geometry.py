@@ -163,8 +163,17 @@ def score_cells(heatmaps: torch.Tensor, cells: torch.Tensor) -> torch.Tensor:
     return _scores(_log_probs(heatmaps), pixels)
 
 
-def _fine_candidates(heatmaps: torch.Tensor, coarse: int, radius: int, refine: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """The coarse-to-fine search's fine cells (B, N, 3) and their exact scores (B, N) (see :func:`decode_cells`)."""
+@torch.no_grad()
+def decode_cells(
+    heatmaps: torch.Tensor, coarse: int = COARSE_CELLS, radius: int = FINE_RADIUS, refine: int = REFINED_CELLS
+) -> torch.Tensor:
+    """(B, V, R, R) heatmap logits -> (B, 3) fine-lattice cell of the best point, coarse-to-fine.
+
+    A coarse cell is scored by the sum over views of the *largest* log-probability in its block
+    (max pooling): an upper bound of every fine score inside it, so a sharp peak that falls
+    between coarse sample points is not missed. The ``refine`` best coarse cells then have their
+    (2 radius + 1)^3 fine neighbourhoods scored exactly; the best fine cell wins.
+    """
     b, v, resolution, _ = heatmaps.shape
     if resolution % coarse:
         raise ValueError(f"the coarse grid ({coarse}) must divide the view resolution ({resolution})")
@@ -177,45 +186,8 @@ def _fine_candidates(heatmaps: torch.Tensor, coarse: int, radius: int, refine: i
     offsets = torch.arange(-radius, radius + 1, device=heatmaps.device)
     fine = (middle[:, :, None, :] + torch.cartesian_prod(offsets, offsets, offsets)).reshape(b, -1, 3).clamp_(0, resolution - 1)
     fine_pixels = _pixel_index(fine.reshape(-1, 3), resolution).view(b, -1, v)
-    return fine, _scores(log_probs, fine_pixels)
-
-
-@torch.no_grad()
-def decode_cells(
-    heatmaps: torch.Tensor, coarse: int = COARSE_CELLS, radius: int = FINE_RADIUS, refine: int = REFINED_CELLS
-) -> torch.Tensor:
-    """(B, V, R, R) heatmap logits -> (B, 3) fine-lattice cell of the best point, coarse-to-fine.
-
-    A coarse cell is scored by the sum over views of the *largest* log-probability in its block
-    (max pooling): an upper bound of every fine score inside it, so a sharp peak that falls
-    between coarse sample points is not missed. The ``refine`` best coarse cells then have their
-    (2 radius + 1)^3 fine neighbourhoods scored exactly; the best fine cell wins.
-    """
-    fine, scores = _fine_candidates(heatmaps, coarse, radius, refine)
-    return fine[torch.arange(len(fine), device=heatmaps.device), scores.argmax(dim=1)]
-
-
-@torch.no_grad()
-def ranked_cells(heatmaps: torch.Tensor, count: int, separation: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """(1, V, R, R) heatmap logits -> up to ``count`` fine cells (K, 3), best first, and their scores (K,).
-
-    The same search as :func:`decode_cells` over max(count, REFINED_CELLS) coarse cells (at least
-    as many as it searches, so the first cell scores at least as high as its answer), then greedy
-    suppression: each next cell is the best one more than ``separation`` fine cells (Chebyshev)
-    from every cell already taken. The searched coarse cells are the best-bounded ones, so the
-    candidates sit around the strongest peak (alternatives a few cells aside) before another.
-    """
-    fine, scores = _fine_candidates(heatmaps[:1], COARSE_CELLS, FINE_RADIUS, max(count, REFINED_CELLS))
-    order = scores[0].argsort(descending=True)
-    fine, scores = fine[0, order], scores[0, order]
-    free = torch.ones(len(fine), dtype=torch.bool, device=fine.device)
-    taken: list[int] = []
-    while len(taken) < count and bool(free.any()):
-        best = int(free.nonzero()[0])  # sorted: the first free cell is the best one left
-        taken.append(best)
-        free &= (fine - fine[best]).abs().amax(dim=1) > separation
-    index = torch.tensor(taken, device=fine.device)
-    return fine[index], scores[index]
+    k = _scores(log_probs, fine_pixels).argmax(dim=1)
+    return fine[torch.arange(b, device=heatmaps.device), k]
 
 
 @torch.no_grad()

@@ -19,9 +19,7 @@ Outputs:
   * :meth:`PolicyModel.predict_keypose` - the keypose (pose of ``tcp`` in ``world``, quaternion
     x, y, z, w) and a confidence in 0..1: the mean over views of each heatmap's largest
     probability (a single-view predictor's: times its largest depth-cell probability) times the
-    product over the three Euler axes of the largest bin probability. With the robot's hand
-    geometry given, a keypose with the hand open is the most likely one whose open hand clears
-    the views' points (:mod:`actaim2.policy.clearance`); the confidence stays the model's.
+    product over the three Euler axes of the largest bin probability.
 
 The predictor is always fed all five views with every rendered channel; an input-ablation
 checkpoint (``predictor_config`` ``inputs`` / ``view`` in its JSON) reads its subset itself.
@@ -39,10 +37,8 @@ from actaim2.keypose import Keypose
 from actaim2.models.predictor import decode_action, proprio_features
 from actaim2.models.view_geometry import CubePlacement
 from actaim2.perception.config import PerceptionConfig
-from actaim2.policy.clearance import ClearanceConfig, choose_clear, observed_points
 from actaim2.policy.requests import RequestError, check_cluster, check_embedding, check_phase
 from actaim2.policy.views import Views
-from actaim2.robots import HandGeometry
 from actaim2.train import checkpoint
 from actaim2.train.distributed import choose_device
 
@@ -64,38 +60,28 @@ class ModeSample:
 class KeyposePrediction:
     keypose: Keypose
     confidence: float
-    clearance_rank: int | None = None  # candidates passed over for the hand's clearance; -1 none cleared; None unscreened
 
 
 class PolicyModel:
     """A loaded checkpoint ready to answer requests (call :meth:`warm_up` before the first one)."""
 
-    def __init__(self, policy: checkpoint.Policy, stem: Path, serving: PerceptionConfig, device: torch.device,
-                 hand: HandGeometry | None = None, clearance: ClearanceConfig = ClearanceConfig()):
+    def __init__(self, policy: checkpoint.Policy, stem: Path, serving: PerceptionConfig, device: torch.device):
         self.selector, self.predictor, self.meta = policy.selector, policy.predictor, policy.meta
         self.stem, self.serving, self.device = stem, serving, device
-        self.hand, self.clearance = hand, clearance
         self.placement = CubePlacement.of(serving)
         filters = self.meta.get("robot_filter") or {}
         self._configs = {role: serving.replace(remove_robot_views=bool(filters.get(role, serving.remove_robot_views)))
                          for role in ROLES}
 
     @classmethod
-    def load(cls, stem: str | Path, serving: PerceptionConfig, device: str = "auto", hand: HandGeometry | None = None,
-             clearance: ClearanceConfig = ClearanceConfig()) -> "PolicyModel":
-        """Load and check; PolicyLoadError with the reason (never a bare crash).
-
-        ``hand``: the executing robot's open hand (``RobotSpec.hand``); None serves the plain argmax.
-        """
+    def load(cls, stem: str | Path, serving: PerceptionConfig, device: str = "auto") -> "PolicyModel":
+        """Load and check; PolicyLoadError with the reason (never a bare crash)."""
         try:
             target = choose_device(device)
             policy = checkpoint.load_policy(stem, checkpoint.perception_record(serving), target)
         except (checkpoint.CheckpointError, RuntimeError, ValueError, OSError) as exc:
             raise PolicyLoadError(str(exc)) from exc
-        if hand is not None and not {"x", "y", "z", "occupancy"} <= set(serving.channels):
-            raise PolicyLoadError(f"the hand's clearance needs the views' x, y, z and occupancy channels; "
-                                  f"{serving.rig} renders {list(serving.channels)}")
-        model = cls(policy, checkpoint.paths(stem)[1].with_suffix(""), serving, target, hand, clearance)
+        model = cls(policy, checkpoint.paths(stem)[1].with_suffix(""), serving, target)
         if model.predictor is not None and model.selector is not None \
                 and model.predictor.config.embedding_dim != model.selector.config.eps_size:
             raise PolicyLoadError(f"{stem}: the selector's eps has {model.selector.config.eps_size} values, "
@@ -164,11 +150,6 @@ class PolicyModel:
         if out.depth is not None:
             heat = heat * torch.softmax(out.depth[0].float(), dim=-1).amax()
         rotation = torch.softmax(out.rotation[0].float(), dim=-1).amax(dim=-1).prod()
-        position, quat = action.position[0].double().cpu().numpy(), action.quat_xyzw[0].double().cpu().numpy()
-        closed, rank = bool(action.gripper_closed[0]), None
-        if self.hand is not None and not closed:
-            config = self._configs["predictor"]
-            points = observed_points(views.data, list(config.channels), self.placement)
-            choice = choose_clear(out, points, position, quat, self.placement, self.hand, self.clearance)
-            position, quat, rank = choice.position, choice.quat_xyzw, choice.rank
-        return KeyposePrediction(Keypose(phase, position, quat, closed), float(heat * rotation), rank)
+        keypose = Keypose(phase, action.position[0].double().cpu().numpy(), action.quat_xyzw[0].double().cpu().numpy(),
+                          bool(action.gripper_closed[0]))
+        return KeyposePrediction(keypose, float(heat * rotation))
