@@ -87,7 +87,7 @@ def test_smoke_interrupted_and_resumed(checkpoints, tmp_path) -> None:
     tables = (out / "tables.md").read_text()
     for text in ("Command: `actaim2 evaluate", "weights sha256", "## Table 1", "**Seen objects**", "**Unseen instances**",
                  "**Unseen categories**", "| ActAIM2 |", "| VQVAE-RVT |", "| ActAIM (CVAE) |", "| Goal-RVT (oracle) |",
-                 "| Random sampler |", "## Table 2", "## Acceptance checks", "Where2Act", "## Figures"):
+                 "| Random sampler |", "## Table 2", "## Acceptance checks", "## Where samples stopped", "Where2Act", "## Figures"):
         assert text in tables, text
     for name in ("embeddings_storage_furniture_000.png", "heatmaps_storage_furniture_000.png"):  # --figures 1
         assert (out / "figures" / name).stat().st_size > 1000 and f"(figures/{name})" in tables

@@ -1,5 +1,7 @@
 """Markdown tables of an evaluation's records: the paper's Table 1 (SSR), Table 2 (Mode SSR), the
-appendix table of 3rd and 4th modes, and the acceptance checks of issue 13.
+appendix table of 3rd and 4th modes, the acceptance checks of issue 13, and where samples stopped
+(which phase the planner refused and why, and the SSR of the samples that ran all four phases:
+whether a row loses to infeasible keyposes or to keyposes that run and move nothing).
 
 Every cell is a pooled rate over the samples it covers, with its 95 % Wilson interval
 (``stats.py``): a category cell pools the category's objects in the split, AVG pools the whole
@@ -15,6 +17,7 @@ from actaim2.eval.evalset import FOLDERS, SPLIT_TITLES, SPLITS
 from actaim2.eval.methods import METHODS, NOT_REPRODUCED, PSEUDO_CLUSTERS
 from actaim2.eval.mode_ssr import GroupSample, ModeResult, object_mode_ssr, pooled
 from actaim2.eval.stats import Rate
+from actaim2.keypose import PHASE_NAMES
 from actaim2.sim.objects.catalog import HELDOUT_CATEGORIES
 
 PAPER_ORDER = ("faucet", "table", "storage_furniture", "door", "switch", "refrigerator") + HELDOUT_CATEGORIES
@@ -143,6 +146,44 @@ def acceptance_table(records: Sequence[dict]) -> list[str]:
     return lines
 
 
+NO_SAMPLE = "no sample"  # the note of a sampler that found no action (``episode.run_sample``)
+
+
+def stop_of(record: dict) -> tuple[str, str]:
+    """(where, why) a sample ended: a phase name and the planner's reason, ``NO_SAMPLE``, or ("", "") when all four ran."""
+    note = record.get("note") or ""
+    if note.startswith(NO_SAMPLE):
+        return NO_SAMPLE, ""
+    if record["phases_executed"] == len(PHASE_NAMES) or not note:
+        return "", ""
+    phase, _, rest = note.partition(": ")
+    return phase, rest.partition(": ")[0]
+
+
+def stops_table(records: Sequence[dict], methods: list[str], reasons: int = 3) -> list[str]:
+    """Per row, over every split: the share of samples ended at each phase by a refused keypose (or with no
+    sample), the share that ran all four phases and those samples' SSR, and the most frequent refusals."""
+    where = [NO_SAMPLE, *PHASE_NAMES]
+    lines = ["| method | samples | " + " | ".join(f"stopped at {w}" if w != NO_SAMPLE else w for w in where)
+             + " | all four phases ran | SSR of those (%) | most frequent refusals |", "|---" * (len(where) + 5) + "|"]
+    for m in methods:
+        rows = [r for r in records if r["method"] == m]
+        if not rows:
+            continue
+        stops = [stop_of(r) for r in rows]
+        ran = [r for r, (phase, _) in zip(rows, stops) if not phase]
+        share = {w: sum(phase == w for phase, _ in stops) / len(rows) for w in where}
+        counts: dict[tuple[str, str], int] = defaultdict(int)
+        for phase, why in stops:
+            if phase and phase != NO_SAMPLE:
+                counts[phase, why] += 1
+        top = sorted(counts.items(), key=lambda kv: -kv[1])[:reasons]
+        lines.append(f"| {METHODS[m].title} | {len(rows)} | " + " | ".join(f"{100 * share[w]:.1f} %" for w in where)
+                     + f" | {100 * len(ran) / len(rows):.1f} % | {Rate(sum(bool(r['success']) for r in ran), len(ran)).cell()} | "
+                     + ", ".join(f"{phase} {why} {100 * n / len(rows):.1f} %" for (phase, why), n in top) + " |")
+    return lines
+
+
 def paper_table() -> list[str]:
     lines = ["| paper (AVG %) | seen | unseen instances | unseen categories |", "|---|---|---|---|"]
     lines += [f"| {METHODS[m].title}, SSR | " + " | ".join(f"{v:.1f}" for v in values) + " |" for m, values in PAPER_SSR.items()]
@@ -162,6 +203,9 @@ def report(records: Sequence[dict], methods: list[str], header: list[str]) -> st
     lines += ["", "## Appendix: objects with more than two modes (Mode SSR of modes 1-4, half B)", ""]
     lines += many_modes_table(records, done)
     lines += ["", "## Acceptance checks (issue 13)", ""] + acceptance_table(records)
+    lines += ["", "## Where samples stopped (all splits)", "",
+              "A keypose the planner refuses ends its sample (docs/evaluation.md); the rest ran all four phases."]
+    lines += [""] + stops_table(records, done)
     lines += ["", "## The paper's figures, for comparison", ""] + paper_table()
     lines += ["", "## Methods", ""] + [f"- **{METHODS[m].title}**: {METHODS[m].about}" for m in done]
     lines += [f"- **{name}**: not reproduced: {why}" for name, why in NOT_REPRODUCED.items()]
