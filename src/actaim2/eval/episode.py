@@ -19,7 +19,7 @@ import numpy as np
 from actaim2.control.executor import KeyposeRunner
 from actaim2.control.planner import KeyposePlanner
 from actaim2.data.object_cloud import CloudConfig, object_cloud
-from actaim2.eval.outcome import measure
+from actaim2.eval.outcome import NO_SAMPLE, measure
 from actaim2.eval.sim_views import pictures
 from actaim2.eval.sources import NoSample, Scene
 from actaim2.eval.tasks import EvalTask
@@ -57,7 +57,7 @@ def run_sample(env: SimEnv, planner: KeyposePlanner, executor, cloud_config: Clo
             executed += 1
             gripper_closed = bool(keypose.gripper_closed)
     except NoSample as exc:
-        note = f"no sample: {exc}"
+        note = f"{NO_SAMPLE}: {exc}"
         record.update(group=exc.group, repetition=exc.repetition)
     outcome = measure(list(info.dof_names), info.dof_initial, env.object_dof(), info.dof_lower, info.dof_upper)
     record.update(success=outcome.success, largest_change=round(outcome.largest_change, 5),

@@ -13,6 +13,8 @@ import numpy as np
 
 from actaim2.sim.success import SUCCESS_FRACTION, moved_fraction
 
+NO_SAMPLE = "no sample"  # how a sample's note begins when its sampler found no action (episode.run_sample)
+
 
 @dataclass(frozen=True)
 class Outcome:

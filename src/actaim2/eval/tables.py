@@ -16,6 +16,7 @@ from typing import Iterable, Sequence
 from actaim2.eval.evalset import FOLDERS, SPLIT_TITLES, SPLITS
 from actaim2.eval.methods import METHODS, NOT_REPRODUCED, PSEUDO_CLUSTERS
 from actaim2.eval.mode_ssr import GroupSample, ModeResult, object_mode_ssr, pooled
+from actaim2.eval.outcome import NO_SAMPLE
 from actaim2.eval.stats import Rate
 from actaim2.keypose import PHASE_NAMES
 from actaim2.sim.objects.catalog import HELDOUT_CATEGORIES
@@ -146,11 +147,11 @@ def acceptance_table(records: Sequence[dict]) -> list[str]:
     return lines
 
 
-NO_SAMPLE = "no sample"  # the note of a sampler that found no action (``episode.run_sample``)
-
-
 def stop_of(record: dict) -> tuple[str, str]:
-    """(where, why) a sample ended: a phase name and the planner's reason, ``NO_SAMPLE``, or ("", "") when all four ran."""
+    """(where, why) a sample ended: a phase name and the planner's reason, ``NO_SAMPLE``, or ("", "") when all four ran.
+
+    Read from the note ``episode.run_sample`` writes: "PHASE: reason: message" for a refused keypose.
+    """
     note = record.get("note") or ""
     if note.startswith(NO_SAMPLE):
         return NO_SAMPLE, ""
