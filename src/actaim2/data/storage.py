@@ -84,6 +84,11 @@ def trajectory_id(object_id: str, sampler: str, index: int) -> str:
     return f"{_slug(object_id)}-{_slug(sampler)}-{index:05d}"
 
 
+def sampler_of(trajectory: str) -> str:
+    """The sampler named in a :func:`trajectory_id` (object ids may hold dashes, samplers do not)."""
+    return trajectory.rsplit("-", 2)[1]
+
+
 @dataclass
 class EncodedTrajectory:
     """A trajectory ready to be appended: its tar members and its index fields.

@@ -61,6 +61,9 @@ class TrainConfig:
     joint_elbo_weight: float = 1.0  # L_total = L_action + w L_ELBO (paper: 1; authors' code: 0.6)
     augment: bool = True  # RVT scene augmentation of the predictor's batches
     eps_noise: float = 0.0  # std of Gaussian noise on the predictor's eps while training (standardised units)
+    # Samplers whose trajectories the predictor learns keyposes from (empty: all, as the paper). The
+    # selector always learns from every success: its clusters describe all the modes collection found.
+    predictor_samplers: tuple[str, ...] = ()
     validation_fraction: float = 0.1  # trajectories of the training split held out for curves
     checkpoint_minutes: float = 10.0  # wall time between resumable checkpoints
     log_every: int = 20  # steps between TensorBoard scalars / progress-bar updates
@@ -91,7 +94,7 @@ class TrainConfig:
             elif key == "elbo":
                 check_fields(ElboWeights, value, key)
                 out[key] = ElboWeights(**value)
-            elif key == "phases":
+            elif key in ("phases", "predictor_samplers"):
                 out[key] = tuple(value)
             else:
                 out[key] = value

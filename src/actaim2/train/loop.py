@@ -37,6 +37,7 @@ from actaim2.models.selector_base import ModeSelector
 from actaim2.models.augment import augment
 from actaim2.models.gumbel import gumbel_temperature
 from actaim2.models.view_geometry import CubePlacement
+from actaim2.data.storage import sampler_of
 from actaim2.perception.ortho_views import CHANNELS
 from actaim2.train import checkpoint
 from actaim2.train.action_loss import action_loss, action_targets
@@ -213,8 +214,17 @@ class Trainer:
         return results
 
     def _items(self, phase: str, data: TrainingData) -> np.ndarray:
-        """Trajectory rows (selector phase) or (trajectory, phase) keyframe pairs (others)."""
-        return np.arange(len(data))[:, None] if phase == "selector" else data.keyframes()
+        """Trajectory rows (selector phase) or (trajectory, phase) keyframe pairs (others).
+
+        Keyframes come only from the trajectories of ``config.predictor_samplers`` when it names any.
+        """
+        if phase == "selector":
+            return np.arange(len(data))[:, None]
+        frames = data.keyframes()
+        if not self.config.predictor_samplers:
+            return frames
+        kept = np.array([sampler_of(i) in self.config.predictor_samplers for i in data.ids], dtype=bool)
+        return frames[kept[frames[:, 0]]]
 
     def _modules(self, phase: str) -> list[torch.nn.Module]:
         return {"selector": [self.selector], "predictor": [self.predictor], "joint": [self.selector, self.predictor]}[phase]

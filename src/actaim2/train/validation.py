@@ -66,7 +66,7 @@ def action_figures(selector: ModeSelector, predictor: ActionPredictor, data: Tra
         eps = _eps(selector, batch["init_views"], batch["z"])
         truth = batch["keypose"].cpu().numpy()
         for kind in EMBEDDINGS:
-            action = decode_action(predictor(batch["views"], eps[kind], proprio), placement)
+            action = decode_action(predictor(batch["views"], eps[kind], proprio), placement, predictor.config.view_index)
             errors[kind]["t"].append(1000.0 * np.linalg.norm(action.position.cpu().numpy() - truth[:, :3], axis=1))
             errors[kind]["r"].append(grasp_geodesic_deg(action.quat_xyzw.cpu().double().numpy(), truth[:, 3:7].astype(np.float64)))
             errors[kind]["g"].append(action.gripper_closed.cpu().numpy() == (truth[:, 7] > 0.5))
