@@ -108,11 +108,14 @@ def test_train_command_runs_all_phases_and_writes_loadable_checkpoints(dataset, 
     report = json.loads((out / "validation.json").read_text())
     assert report["weights_sha256"] == policy.meta["weights_sha256"] and report["selector"]["trajectories"] == 11
     assert sum(report["selector"]["posterior"]["counts"]) == 11 == sum(report["selector"]["prior_draws"]["counts"])
-    for figures in report["actions"].values():
-        assert figures["keyframes"] == 44
-        assert 0.0 <= figures["translation_median_mm"] <= figures["translation_p90_mm"] < 2000.0
-        assert 0.0 <= figures["rotation_median_deg"] <= figures["rotation_p90_deg"] <= 180.0
-    assert (out / "curves.png").stat().st_size > 10_000 and "| true z" in (out / "validation.md").read_text()
+    for by_phase in report["actions"].values():
+        assert list(by_phase) == ["all", "init", "reach", "grasp", "manipulate"]
+        assert by_phase["all"]["keyframes"] == 44 == sum(by_phase[p]["keyframes"] for p in list(by_phase)[1:])
+        for figures in by_phase.values():
+            assert 0.0 <= figures["translation_median_mm"] <= figures["translation_p90_mm"] < 2000.0
+            assert 0.0 <= figures["rotation_median_deg"] <= figures["rotation_p90_deg"] <= 180.0
+    text = (out / "validation.md").read_text()
+    assert (out / "curves.png").stat().st_size > 10_000 and "| true z" in text and "| MANIPULATE | 11 |" in text
 
 
 def test_baseline_selector_reuses_the_goal_rvt_predictor(dataset, tmp_path):

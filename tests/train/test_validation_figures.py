@@ -24,7 +24,8 @@ def test_action_figures_of_five_view_and_single_view_predictors(tmp_path, view):
     assert (trainer.predictor.config.view_index is None) == (view == "all")
     figures = action_figures(trainer.selector, trainer.predictor, data, PLACEMENT, torch.device("cpu"))
     assert set(figures) == set(EMBEDDINGS)
-    for f in figures.values():
-        assert f.keyframes == len(data.keyframes())
+    for by_phase in figures.values():
+        f = by_phase["all"]
+        assert f.keyframes == len(data.keyframes()) == sum(by_phase[p].keyframes for p in by_phase if p != "all")
         assert 0.0 <= f.translation_median_mm <= f.translation_p90_mm < 2000.0 * PLACEMENT.half_extent
         assert 0.0 <= f.rotation_median_deg <= f.rotation_p90_deg <= 180.0

@@ -53,7 +53,7 @@ def main(args: argparse.Namespace) -> int:
     digest = policy.meta.get("weights_sha256")
     report = {"checkpoint": str(stem), "weights_sha256": digest, "dataset": str(args.data),
               "dataset_digest": dataset_digest(args.data), "split": args.split,
-              "actions": {k: dataclasses.asdict(v) for k, v in actions.items()}, "selector": selector}
+              "actions": {k: {p: dataclasses.asdict(f) for p, f in v.items()} for k, v in actions.items()}, "selector": selector}
     (args.run / "validation.json").write_text(json.dumps(report, indent=2) + "\n")
     text = markdown(args.split, actions, selector)
     (args.run / "validation.md").write_text(text)

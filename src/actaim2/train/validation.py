@@ -9,7 +9,8 @@ Action predictor, per keyframe with a target inside the cube, fed two embeddings
   * ``reconstructed``: the selector's reconstruction of the trajectory's z through the posterior
     means (what the joint phase trains the predictor on, sg[eps_hat]);
   * ``true``: the standardised true z (the Goal-RVT input).
-Figures: translation error (median and 90th percentile, mm), rotation error (geodesic, deg, up
+Figures, over all keyframes and per keypose phase (INIT and MANIPULATE lie off the object, so they
+err differently from REACH and GRASP): translation error (median and 90th percentile, mm), rotation error (geodesic, deg, up
 to the hand's half-turn symmetry about its approach axis),
 gripper accuracy.
 
@@ -26,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from actaim2.data.trajectory import PHASES
 from actaim2.models.predictor import ActionPredictor, decode_action, proprio_features
 from actaim2.models.rotation_bins import grasp_geodesic_deg
 from actaim2.models.selector_base import ModeSelector
@@ -52,10 +54,16 @@ def _eps(selector: ModeSelector, init_views: torch.Tensor, z: torch.Tensor) -> d
     return {"true": true, "reconstructed": selector.reconstruct(init_views, true)}
 
 
+def _figures(t: np.ndarray, r: np.ndarray, g: np.ndarray) -> ActionFigures:
+    return ActionFigures(len(t), float(np.median(t)), float(np.percentile(t, 90)), float(np.median(r)),
+                         float(np.percentile(r, 90)), float(g.mean()))
+
+
 @torch.no_grad()
 def action_figures(selector: ModeSelector, predictor: ActionPredictor, data: TrainingData, placement: CubePlacement,
-                   device: torch.device, batch_size: int = 16) -> dict[str, ActionFigures]:
-    """Errors of the predicted keyposes against the recorded ones, for each embedding fed."""
+                   device: torch.device, batch_size: int = 16) -> dict[str, dict[str, ActionFigures]]:
+    """Errors of the predicted keyposes against the recorded ones: per embedding fed, over all
+    keyframes (``"all"``) and per keypose phase (``"init"`` ... ``"manipulate"``, where it has keyframes)."""
     frames = data.keyframes()
     if len(frames) == 0:
         raise ValueError("no keyframe with a target inside the cube")
@@ -70,11 +78,14 @@ def action_figures(selector: ModeSelector, predictor: ActionPredictor, data: Tra
             errors[kind]["t"].append(1000.0 * np.linalg.norm(action.position.cpu().numpy() - truth[:, :3], axis=1))
             errors[kind]["r"].append(grasp_geodesic_deg(action.quat_xyzw.cpu().double().numpy(), truth[:, 3:7].astype(np.float64)))
             errors[kind]["g"].append(action.gripper_closed.cpu().numpy() == (truth[:, 7] > 0.5))
-    out = {}
+    out: dict[str, dict[str, ActionFigures]] = {}
     for kind, e in errors.items():
         t, r, g = (np.concatenate(e[key]) for key in ("t", "r", "g"))
-        out[kind] = ActionFigures(len(t), float(np.median(t)), float(np.percentile(t, 90)), float(np.median(r)),
-                                  float(np.percentile(r, 90)), float(g.mean()))
+        out[kind] = {"all": _figures(t, r, g)}
+        for index, name in enumerate(PHASES):
+            rows = frames[:, 1] == index
+            if rows.any():
+                out[kind][name] = _figures(t[rows], r[rows], g[rows])
     return out
 
 
@@ -101,17 +112,23 @@ def selector_figures(selector: ModeSelector, data: TrainingData, device: torch.d
             "posterior": usage(assigned_all), "prior_draws": usage(drawn_all)}
 
 
-def markdown(split: str, actions: dict[str, ActionFigures], selector: dict) -> str:
-    """The figures as the README shows them."""
+def markdown(split: str, actions: dict[str, dict[str, ActionFigures]], selector: dict) -> str:
+    """The figures as the README shows them: over all keyframes, then per keypose phase."""
     lines = [f"Validation on the visually-labelled successes of `{split}` "
-             f"({selector['trajectories']} trajectories, {actions['reconstructed'].keyframes} keyframes):", "",
+             f"({selector['trajectories']} trajectories, {actions['reconstructed']['all'].keyframes} keyframes):", "",
              "| eps fed to the predictor | translation median / p90 (mm) | rotation median / p90 (deg) | gripper accuracy |",
              "|---|---|---|---|"]
     names = {"reconstructed": "selector's reconstruction of z (as served after training)", "true": "true z (Goal-RVT input)"}
     for kind in EMBEDDINGS:
-        a = actions[kind]
+        a = actions[kind]["all"]
         lines.append(f"| {names[kind]} | {a.translation_median_mm:.0f} / {a.translation_p90_mm:.0f} | "
                      f"{a.rotation_median_deg:.1f} / {a.rotation_p90_deg:.1f} | {100 * a.gripper_accuracy:.1f} % |")
+    lines += ["", "Per keypose (medians; reconstruction of z / true z):", "",
+              "| keypose | keyframes | translation (mm) | rotation (deg) |", "|---|---|---|---|"]
+    for phase in (p for p in PHASES if p in actions["true"]):
+        rec, true = actions["reconstructed"][phase], actions["true"][phase]
+        lines.append(f"| {phase.upper()} | {true.keyframes} | {rec.translation_median_mm:.0f} / {true.translation_median_mm:.0f} | "
+                     f"{rec.rotation_median_deg:.1f} / {true.rotation_median_deg:.1f} |")
     post, prior = selector["posterior"], selector["prior_draws"]
     k = len(post["counts"])
     lines += ["", f"Selector: reconstruction MSE {selector['reconstruction_mse']:.3f} per dimension of standardised eps "
