@@ -31,13 +31,13 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from actaim2.data.storage import sampler_of
 from actaim2.models.predictor import ActionPredictor, PredictorConfig, proprio_features
 from actaim2.models.registry import build_selector
 from actaim2.models.selector_base import ModeSelector
 from actaim2.models.augment import augment
 from actaim2.models.gumbel import gumbel_temperature
 from actaim2.models.view_geometry import CubePlacement
-from actaim2.data.storage import sampler_of
 from actaim2.perception.ortho_views import CHANNELS
 from actaim2.train import checkpoint
 from actaim2.train.action_loss import action_loss, action_targets
