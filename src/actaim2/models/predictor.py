@@ -27,9 +27,16 @@ Network, as RVT's MVT:
      logits, put in place by pixel shuffle - no full-resolution convolution (those cost more
      than the whole transformer on a CPU).
   6. Rotation (3 x 72 Euler bins) and gripper (2) logits - and a single-view predictor's depth
-     logits - come from pooled features: per view the maximum over tokens and the
-     heatmap-weighted mean of tokens (RVT-1's pooling; the heatmap is detached, so only the
-     translation loss shapes it), concatenated over views with the conditioning features.
+     logits - come from pooled features: per view the maximum over tokens and the features at
+     the action's location, concatenated over views with the conditioning features. The
+     location is ``PredictorConfig.rotation_pooling``'s:
+       - ``heatmap`` (RVT-1): the mean of tokens under the predicted heatmap (detached, so only
+         the translation loss shapes it);
+       - ``point`` (RVT-2): the token whose patch holds the point, the demonstration's point
+         while training (``forward(..., point=)``) and the predicted one otherwise. Why: with
+         RVT-1's pooling the rotation head learns from features wherever the heatmap is, and
+         the heatmap of an under-fitted predictor is centimetres off; the rotation of a grasp
+         depends on the geometry at the grasp point.
 
 :func:`decode_action` turns the outputs into a keypose: the 3-D point by the coarse-to-fine
 cube-grid search (single view: the heatmap's pixel at the most likely depth cell), the rotation
@@ -47,7 +54,7 @@ from torch import nn
 
 from actaim2.data.trajectory import PHASES
 from actaim2.models.rotation_bins import ROTATION_BINS, bins_to_quat
-from actaim2.models.view_geometry import CubePlacement, decode_points, decode_points_in_view
+from actaim2.models.view_geometry import CubePlacement, decode_points, decode_points_in_view, project_cube
 from actaim2.perception.ortho_views import CHANNELS, DEFAULT_RESOLUTION, VIEWS
 
 PROPRIO_DIM = 1 + len(PHASES)  # gripper closed + phase one-hot
@@ -57,6 +64,7 @@ ALL_VIEWS = "all"
 # validity mask (an empty pixel's depth is the far face), what an RGB-D camera's depth also gives.
 INPUT_GROUPS: dict[str, tuple[str, ...]] = {"rgb": ("r", "g", "b"), "xyz": ("x", "y", "z"),
                                             "depth": ("depth", "occupancy"), "uv": ()}
+ROTATION_POOLING = ("heatmap", "point")
 
 
 @dataclass(frozen=True)
@@ -86,6 +94,9 @@ class PredictorConfig:
     # rules out the fused attention kernel and made a training step 40% slower here; scene
     # augmentation regularises instead. RVT's 0.1 in rvt_size().
     dropout: float = 0.0
+    # Where the rotation/gripper head reads its per-view features (item 6 of the module
+    # docstring): "heatmap" (RVT-1; checkpoints saved before the field existed) or "point" (RVT-2).
+    rotation_pooling: str = "heatmap"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "channel_names", tuple(self.channel_names))
@@ -103,6 +114,8 @@ class PredictorConfig:
             raise ValueError(f"inputs {list(self.inputs)} select none of the rendered channels {list(self.channel_names)}")
         if self.view != ALL_VIEWS and (self.view not in VIEWS or self.views != len(VIEWS)):
             raise ValueError(f"view must be {ALL_VIEWS!r} or one of {list(VIEWS)} (of five rendered views), got {self.view!r}")
+        if self.rotation_pooling not in ROTATION_POOLING:
+            raise ValueError(f"rotation_pooling must be one of {list(ROTATION_POOLING)}, got {self.rotation_pooling!r}")
 
     @property
     def read_channels(self) -> tuple[int, ...]:
@@ -191,11 +204,15 @@ class ActionPredictor(nn.Module):
         rows, cols = torch.meshgrid(line, line, indexing="ij")
         self.register_buffer("pixel_location", torch.stack([cols, rows]), persistent=False)
 
-    def forward(self, views: torch.Tensor, eps: torch.Tensor, proprio: torch.Tensor) -> PredictorOutput:
+    def forward(self, views: torch.Tensor, eps: torch.Tensor, proprio: torch.Tensor,
+                point: torch.Tensor | None = None) -> PredictorOutput:
         """views (B, V, C, H, W) as rendered (all of them); eps (B, embedding_dim); proprio (B, proprio_dim).
 
         The network reads only the channels of ``config.inputs`` of ``config.view``: the rest of
-        ``views`` does not reach any output.
+        ``views`` does not reach any output. ``point``: (B, 3) cube-frame position of the
+        demonstrated keypose, given while training; with ``rotation_pooling="point"`` the rotation
+        and gripper head read the features there instead of at the predicted point (teacher forcing,
+        RVT-2). RVT-1's pooling does not use it.
         """
         c = self.config
         b, v, _, h, w = views.shape
@@ -226,15 +243,34 @@ class ActionPredictor(nn.Module):
         logits = self.heatmap_head(features).reshape(b * v, self.grid, self.grid, c.patch * c.patch)
         heatmaps = F.pixel_shuffle(logits.permute(0, 3, 1, 2), c.patch).reshape(b, v, h, w)
 
-        # Rotation and gripper from features pooled per view: max, and the mean under the heatmap.
-        probs = torch.softmax(heatmaps.detach().reshape(b, v, -1), dim=-1).reshape(b, v, self.grid, c.patch, self.grid, c.patch)
-        weights = probs.sum(dim=(3, 5)).reshape(b, v, n, 1)  # probability mass of each patch
-        pooled = torch.cat([features.amax(dim=2), (features * weights).sum(dim=2)], dim=-1).reshape(b, -1)
+        # Rotation and gripper from features pooled per view: max, and the features at the action.
+        pooled = torch.cat([features.amax(dim=2), self._at_action(features, heatmaps, point)], dim=-1).reshape(b, -1)
         out = self.action_head(torch.cat([pooled, cond], dim=1))
         rotation = out[:, : 3 * c.rotation_bins].reshape(b, 3, c.rotation_bins)
         gripper = out[:, 3 * c.rotation_bins : 3 * c.rotation_bins + 2]
         depth = out[:, 3 * c.rotation_bins + 2 :] if self.depth_cells else None
         return PredictorOutput(heatmaps, rotation, gripper, depth)
+
+    def _at_action(self, features: torch.Tensor, heatmaps: torch.Tensor, point: torch.Tensor | None) -> torch.Tensor:
+        """(B, V, D) per-view features at the action's location (``config.rotation_pooling``)."""
+        c = self.config
+        b, v, n, d = features.shape
+        if c.rotation_pooling == "heatmap":
+            probs = torch.softmax(heatmaps.detach().reshape(b, v, -1), dim=-1).reshape(b, v, self.grid, c.patch, self.grid, c.patch)
+            weights = probs.sum(dim=(3, 5)).reshape(b, v, n, 1)  # probability mass of each patch
+            return (features * weights).sum(dim=2)
+        with torch.no_grad():
+            if point is not None:
+                uv = project_cube(point, c.image_size)  # (B, 5, 2): every rendered view
+                uv = uv if c.view_index is None else uv[:, c.view_index : c.view_index + 1]
+            elif c.view_index is None:  # the decoded point seen from each view, as decode_action finds it
+                uv = project_cube(decode_points(heatmaps), c.image_size)
+            else:  # one view: the point's pixel is the heatmap's most likely one, whatever its depth
+                pixel = heatmaps.reshape(b, v, -1).argmax(dim=-1)
+                uv = torch.stack([pixel % c.image_size, pixel // c.image_size], dim=-1).float() + 0.5
+            cell = (uv / c.patch).floor().long().clamp_(0, self.grid - 1)
+            token = cell[..., 1] * self.grid + cell[..., 0]  # (B, V): patches are laid out row-major
+        return features.gather(2, token[..., None, None].expand(b, v, 1, d)).squeeze(2)
 
     def parameter_count(self) -> int:
         return sum(p.numel() for p in self.parameters())

@@ -292,7 +292,9 @@ class Trainer:
         """(L_action or None, L_ELBO or None, metrics) of one batch of ``items``.
 
         ``wrapped`` maps modules to their DDP wrappers; ``rng`` draws the scene augmentation
-        (none without it, as in validation). In the joint phase the predictor reads the
+        (none without it, as in validation). Only a training batch (with ``rng``) gives the
+        predictor the demonstrated point (``rotation_pooling="point"``): validation losses read
+        the predicted one, as served. In the joint phase the predictor reads the
         selector's reconstruction of z *detached* (sg[eps]), so L_action has no path into the
         selector (tests/train/test_stop_gradient.py).
         """
@@ -314,7 +316,8 @@ class Trainer:
                 eps_in = eps_hat.detach()
                 metrics.update({f"selector_{k}": v for k, v in sel_metrics.items()})
             views, keypose = self.augment(batch["views"], batch["keypose"], rng)
-            out = predictor(views, self.perturb_eps(eps_in, rng), proprio_features(batch["gripper"], batch["phase"]))
+            point = self.placement.to_cube(keypose[:, :3]) if rng is not None else None  # teacher forcing: training only
+            out = predictor(views, self.perturb_eps(eps_in, rng), proprio_features(batch["gripper"], batch["phase"]), point)
             action, parts = action_loss(out, action_targets(keypose, self.placement, views.shape[-1],
                                                             view=self.predictor_config.view_index))
             metrics.update({"action": action.item(), **{k: float(v) for k, v in parts.items()}})
