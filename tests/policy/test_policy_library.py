@@ -11,7 +11,7 @@ import pytest
 from actaim2.perception.config import load_perception_config
 from actaim2.policy.episodes import EpisodeLog, EpisodeRecord, PhaseRecord, largest_change, plan_episodes, summary_table
 from actaim2.policy.inference import PolicyLoadError, PolicyModel
-from actaim2.policy.locate import resolve_checkpoint
+from actaim2.policy.locate import describe, resolve_checkpoint
 from actaim2.policy.requests import RequestError, check_fresh, is_transient
 from actaim2.policy.retry import Backoff, wait_until
 from actaim2.policy.views import Views, accept_views
@@ -37,6 +37,21 @@ def test_the_checkpoint_is_found_by_path_or_by_name_in_a_folder(tiny_checkpoint,
     assert resolve_checkpoint(stem.name, [tmp_path, stem.parent]) == stem
     with pytest.raises(FileNotFoundError, match=r"not found \(looked for .*nowhere/policy.json"):
         resolve_checkpoint("policy", [tmp_path / "nowhere"])
+
+
+def test_the_description_names_the_runs_a_continued_checkpoint_came_from(tiny_checkpoint, tmp_path):
+    """A run continued twice (--init-from) names its own phases, then each run it continued."""
+    meta = json.loads(tiny_checkpoint.stem.with_suffix(".json").read_text())
+    first = {"path": "runs/a/policy", "weights_sha256": "aaaa1111" * 8, "phases_done": ["selector", "predictor", "joint"],
+             "predictor_loaded": True, "init_from": None}
+    second = {"path": "runs/b/policy", "weights_sha256": "bbbb2222" * 8, "phases_done": ["predictor"],
+              "predictor_loaded": True, "init_from": first}
+    meta["lineage"] = {**meta.get("lineage", {}), "phases_done": ["predictor"], "init_from": second}
+    (tmp_path / "continued.json").write_text(json.dumps(meta))
+    text = describe(tmp_path / "continued")
+    assert text.endswith("trained phases: predictor; continued from bbbb2222 (phases: predictor); "
+                         "continued from aaaa1111 (phases: selector, predictor, joint))"), text
+    assert describe(tiny_checkpoint.stem).count("continued from") == 0
 
 
 def test_a_checkpoint_trained_under_another_perception_configuration_is_refused_naming_the_fields(tiny_checkpoint):

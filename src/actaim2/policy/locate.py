@@ -39,10 +39,23 @@ def resolve_checkpoint(name_or_path: str | Path, search_dirs: Sequence[Path] = (
     raise FileNotFoundError(f"checkpoint '{name_or_path}' not found (looked for {looked})")
 
 
+def _phases(lineage: dict) -> str:
+    return ", ".join(lineage.get("phases_done") or []) or "none"
+
+
 def describe(stem: Path) -> str:
-    """What a checkpoint is, from its JSON alone: path, weights digest, perception digest, training phases."""
+    """What a checkpoint is, from its JSON alone: path, weights digest, perception digest, training phases.
+
+    A run continued from another (``--init-from``) names the runs it continued, newest first: its
+    own phases alone would hide how the rest was trained.
+    """
     meta = json.loads(paths(stem)[1].read_text())
-    phases = ", ".join(meta.get("lineage", {}).get("phases_done") or []) or "none (untrained)"
+    lineage = meta.get("lineage", {})
+    phases = _phases(lineage) if lineage.get("phases_done") else "none (untrained)"
+    parent = lineage.get("init_from")
+    while parent:
+        phases += f"; continued from {str(parent.get('weights_sha256'))[:8]} (phases: {_phases(parent)})"
+        parent = parent.get("init_from")
     return (f"{stem} (weights sha256 {str(meta.get('weights_sha256'))[:16]}, perception configuration "
             f"{meta.get('perception', {}).get('digest')}, trained phases: {phases})")
 

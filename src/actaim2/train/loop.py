@@ -125,9 +125,10 @@ class Trainer:
                 self.selector.eps_basis.copy_(policy.selector.eps_basis)
             self.selector.obs_encoder.channel_mean.copy_(policy.selector.obs_encoder.channel_mean)
             self.selector.obs_encoder.channel_std.copy_(policy.selector.obs_encoder.channel_std)
+        parent = policy.meta.get("lineage", {})
         self.lineage["init_from"] = {"path": str(stem), "weights_sha256": policy.meta.get("weights_sha256"),
-                                     "phases_done": policy.meta.get("lineage", {}).get("phases_done"),
-                                     "predictor_loaded": same_inputs}
+                                     "phases_done": parent.get("phases_done"), "predictor_loaded": same_inputs,
+                                     "init_from": parent.get("init_from")}  # the chain back to the first run
 
     def _tensorboard(self):
         try:
