@@ -29,3 +29,11 @@ def test_a_base_merges_mappings_key_by_key_and_refuses_loops_and_unknown_keys(tm
     (tmp_path / "typo.yaml").write_text("base: cpu_default\npredictor_phase: {epoch: 3}\n")
     with pytest.raises(ValueError, match=r"unknown predictor_phase field\(s\)"):
         load_config(tmp_path / "typo.yaml")
+
+
+def test_point_pooling_is_structured_demos_but_for_the_pooling_and_ten_epochs():
+    base = load_config("structured_demos")
+    config = load_config("point_pooling")
+    assert config.predictor == {**base.predictor, "rotation_pooling": "point"}
+    assert config.predictor_phase == dataclasses.replace(base.predictor_phase, epochs=10)
+    assert dataclasses.replace(config, predictor=base.predictor, predictor_phase=base.predictor_phase) == base
