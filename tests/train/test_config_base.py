@@ -37,3 +37,25 @@ def test_point_pooling_is_structured_demos_but_for_the_pooling_and_ten_epochs():
     assert config.predictor == {**base.predictor, "rotation_pooling": "point"}
     assert config.predictor_phase == dataclasses.replace(base.predictor_phase, epochs=10)
     assert dataclasses.replace(config, predictor=base.predictor, predictor_phase=base.predictor_phase) == base
+
+
+def test_rotation_smoothing_is_structured_demos_but_for_the_rotation_targets_and_ten_epochs():
+    base = load_config("structured_demos")
+    config = load_config("rotation_smoothing")
+    assert config.rotation_sigma_deg == 10.0 and base.rotation_sigma_deg == 0.0
+    assert config.predictor_phase == dataclasses.replace(base.predictor_phase, epochs=10)
+    assert dataclasses.replace(config, rotation_sigma_deg=0.0, predictor_phase=base.predictor_phase) == base
+
+
+def test_a_negative_rotation_sigma_is_refused(tmp_path):
+    (tmp_path / "bad.yaml").write_text("base: cpu_default\nrotation_sigma_deg: -1.0\n")
+    with pytest.raises(ValueError, match="rotation_sigma_deg must be >= 0"):
+        load_config(tmp_path / "bad.yaml")
+
+
+def test_the_third_steps_control_is_structured_demos_but_for_ten_epochs():
+    base = load_config("structured_demos")
+    config = load_config("third_step_control")
+    assert config == dataclasses.replace(base, predictor_phase=dataclasses.replace(base.predictor_phase, epochs=10))
+    for step in ("point_pooling", "rotation_smoothing"):
+        assert load_config(step).predictor_phase == config.predictor_phase

@@ -8,7 +8,12 @@
   against their Gaussian soft target (together: the CE of the point's fine cell, factored).
 * CE(R): cross-entropy of each Euler angle's 72 bins, summed over the three angles (RVT). The
   target is the keypose's rotation or its half turn about the approach axis, whichever
-  :func:`~actaim2.models.rotation_bins.canonical_grasp` picks (one class per grasp).
+  :func:`~actaim2.models.rotation_bins.canonical_grasp` picks (one class per grasp). With
+  ``rotation_sigma_deg`` > 0 the target of each angle is a circular Gaussian over its bins instead
+  of the one bin (the training config's ``rotation_sigma_deg``; 0, RVT's one-hot, by default).
+  Why: one-hot classes make a bin 5 deg off as wrong as one 180 deg off, so 72 classes per angle
+  are learnt from a few hundred demonstrations one by one; a Gaussian target tells the head that
+  neighbouring angles are nearly right, as the heatmap's Gaussian does for pixels.
 * CE(q): cross-entropy of the gripper state (0 open, 1 closed).
 
 The parts are returned separately for logging.
@@ -62,14 +67,31 @@ def action_targets(
     )
 
 
-def action_loss(out: PredictorOutput, targets: ActionTargets) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
-    """(L_action, {"translation", "rotation", "gripper"}) for a batch; the parts are detached."""
+def rotation_soft_targets(bins: torch.Tensor, n_bins: int, sigma_deg: float) -> torch.Tensor:
+    """(B, 3) bins -> (B, 3, n_bins) circular Gaussians of std ``sigma_deg`` around them, each summing to 1."""
+    centres = torch.arange(n_bins, device=bins.device)
+    offset = (centres - bins.unsqueeze(-1)).remainder(n_bins)  # (B, 3, n) bins from the target, either way round
+    degrees = torch.minimum(offset, n_bins - offset).float() * (360.0 / n_bins)
+    weights = torch.exp(-0.5 * (degrees / sigma_deg) ** 2)
+    return weights / weights.sum(dim=-1, keepdim=True)
+
+
+def action_loss(out: PredictorOutput, targets: ActionTargets,
+                rotation_sigma_deg: float = 0.0) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+    """(L_action, {"translation", "rotation", "gripper"}) for a batch; the parts are detached.
+
+    ``rotation_sigma_deg`` > 0 scores the rotation against Gaussian targets over the bins (training
+    only: validation keeps the one-hot CE(R), comparable across runs and with chance, 3 ln 72).
+    """
     b, v, h, w = out.heatmaps.shape
     log_p = F.log_softmax(out.heatmaps.reshape(b, v, h * w).float(), dim=-1)
     translation = -(targets.heatmaps.reshape(b, v, h * w) * log_p).sum(dim=-1).mean()
     if out.depth is not None:
         translation = translation - (targets.depth * F.log_softmax(out.depth.float(), dim=-1)).sum(dim=-1).mean()
-    rotation = F.cross_entropy(out.rotation.float().transpose(1, 2), targets.rotation_bins, reduction="none").sum(dim=1).mean()
+    logits = out.rotation.float().transpose(1, 2)  # (B, n_bins, 3)
+    rotation_target = targets.rotation_bins if rotation_sigma_deg <= 0.0 else \
+        rotation_soft_targets(targets.rotation_bins, logits.shape[1], rotation_sigma_deg).transpose(1, 2)
+    rotation = F.cross_entropy(logits, rotation_target, reduction="none").sum(dim=1).mean()
     gripper = F.cross_entropy(out.gripper.float(), targets.gripper)
     total = translation + rotation + gripper
     return total, {"translation": translation.detach(), "rotation": rotation.detach(), "gripper": gripper.detach()}

@@ -61,6 +61,7 @@ class TrainConfig:
     joint_elbo_weight: float = 1.0  # L_total = L_action + w L_ELBO (paper: 1; authors' code: 0.6)
     augment: bool = True  # RVT scene augmentation of the predictor's batches
     eps_noise: float = 0.0  # std of Gaussian noise on the predictor's eps while training (standardised units)
+    rotation_sigma_deg: float = 0.0  # std of the Gaussian rotation targets over each angle's bins (0: one-hot, RVT)
     # Samplers whose trajectories the predictor learns keyposes from (empty: all, as the paper). The
     # selector always learns from every success: its clusters describe all the modes collection found.
     predictor_samplers: tuple[str, ...] = ()
@@ -74,6 +75,8 @@ class TrainConfig:
         bad = [p for p in self.phases if p not in PHASES]
         if bad:
             raise ValueError(f"unknown phases {bad}; choose from {PHASES}")
+        if self.rotation_sigma_deg < 0.0:
+            raise ValueError(f"rotation_sigma_deg must be >= 0 (0: one-hot targets), got {self.rotation_sigma_deg}")
 
     def phase(self, name: str) -> PhaseConfig:
         return getattr(self, f"{name}_phase")

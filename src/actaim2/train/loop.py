@@ -294,8 +294,9 @@ class Trainer:
 
         ``wrapped`` maps modules to their DDP wrappers; ``rng`` draws the scene augmentation
         (none without it, as in validation). Only a training batch (with ``rng``) gives the
-        predictor the demonstrated point (``rotation_pooling="point"``): validation losses read
-        the predicted one, as served. In the joint phase the predictor reads the
+        predictor the demonstrated point (``rotation_pooling="point"``) and the Gaussian rotation
+        targets (``rotation_sigma_deg``): validation losses read the predicted point and score
+        the one-hot CE(R), as served and comparable across runs. In the joint phase the predictor reads the
         selector's reconstruction of z *detached* (sg[eps]), so L_action has no path into the
         selector (tests/train/test_stop_gradient.py).
         """
@@ -320,7 +321,8 @@ class Trainer:
             point = self.placement.to_cube(keypose[:, :3]) if rng is not None else None  # teacher forcing: training only
             out = predictor(views, self.perturb_eps(eps_in, rng), proprio_features(batch["gripper"], batch["phase"]), point)
             action, parts = action_loss(out, action_targets(keypose, self.placement, views.shape[-1],
-                                                            view=self.predictor_config.view_index))
+                                                            view=self.predictor_config.view_index),
+                                        rotation_sigma_deg=self.config.rotation_sigma_deg if rng is not None else 0.0)
             metrics.update({"action": action.item(), **{k: float(v) for k, v in parts.items()}})
             return action, elbo, metrics
 
