@@ -1,5 +1,6 @@
 """Markdown tables of an evaluation's records: the paper's Table 1 (SSR), Table 2 (Mode SSR), the
-appendix table of 3rd and 4th modes, the acceptance checks of issue 13, and where samples stopped
+appendix table of 3rd and 4th modes, whether the groups select outcomes at all (a permutation
+test, ``mode_dependence.py``), the acceptance checks of issue 13, and where samples stopped
 (which phase the planner refused and why, and the SSR of the samples that ran all four phases:
 whether a row loses to infeasible keyposes or to keyposes that run and move nothing).
 
@@ -15,6 +16,7 @@ from typing import Iterable, Sequence
 
 from actaim2.eval.evalset import FOLDERS, SPLIT_TITLES, SPLITS
 from actaim2.eval.methods import METHODS, NOT_REPRODUCED, PSEUDO_CLUSTERS
+from actaim2.eval.mode_dependence import PERMUTATIONS, dependence_cells
 from actaim2.eval.mode_ssr import GroupSample, ModeResult, object_mode_ssr, pooled
 from actaim2.eval.outcome import NO_SAMPLE
 from actaim2.eval.stats import Rate
@@ -127,6 +129,18 @@ def many_modes_table(records: Sequence[dict], methods: list[str]) -> list[str]:
     return lines if len(lines) > 2 else ["(no object showed three or more distinct modes)"]
 
 
+def dependence_table(records: Sequence[dict], methods: list[str]) -> list[str]:
+    """Per method drawing from groups and per split: MI(group; outcome) summed over objects, and its p-value."""
+    cells, splits = dependence_cells(records), _splits(records)
+    lines = ["| method | " + " | ".join(SPLIT_TITLES[s] for s in splits) + " |", "|---" * (len(splits) + 1) + "|"]
+    for m in methods:
+        if any((m, s) in cells for s in splits):
+            suffix = f" ({PSEUDO_CLUSTERS} random pseudo-clusters)" if METHODS[m].grouping == "pseudo" else ""
+            lines.append(f"| {METHODS[m].title}{suffix} | " + " | ".join(cells[m, s].cell() if (m, s) in cells else "-"
+                                                                          for s in splits) + " |")
+    return lines
+
+
 def _above(a: Rate | None, b: Rate | None) -> str:
     if a is None or b is None or not a.trials or not b.trials:
         return "not measured"
@@ -203,6 +217,11 @@ def report(records: Sequence[dict], methods: list[str], header: list[str]) -> st
                   "its rate measured on half B (docs/evaluation.md)."] + mode_table(records, done)
     lines += ["", "## Appendix: objects with more than two modes (Mode SSR of modes 1-4, half B)", ""]
     lines += many_modes_table(records, done)
+    lines += ["", "## Do the groups select outcomes? (all samples, docs/evaluation.md)", "",
+              "Mutual information (nats, summed over objects) between the group a sample was drawn from and its "
+              f"outcome (mode of a success, or failed); p: permutation test, groups shuffled within each object "
+              f"({PERMUTATIONS} permutations).", ""]
+    lines += dependence_table(records, done)
     lines += ["", "## Acceptance checks (issue 13)", ""] + acceptance_table(records)
     lines += ["", "## Where samples stopped (all splits)", "",
               "A keypose the planner refuses ends its sample (docs/evaluation.md); the rest ran all four phases."]

@@ -20,7 +20,12 @@ Network, as RVT's MVT:
      convolution computes; as a matrix product its backward pass ran 5x faster here) plus a
      learned position embedding per view and patch.
   3. eps and the proprioception, through a small MLP, are *added to every token*: each token
-     knows the mode and the phase from the first layer on.
+     knows the mode and the phase from the first layer on. With ``PredictorConfig.conditioning``
+     ``film`` they also scale and shift every token before each block (FiLM, Perez et al. 2018).
+     Why: an added vector shifts all tokens alike, so choosing *which* part to reach by the mode
+     takes the blocks' MLPs to multiply it with each token's content; FiLM multiplies directly.
+     Its layers start at zero (the identity), so a predictor continued from an ``add`` one starts
+     as that one.
   4. ``layers_within`` blocks attend within each view, then ``layers_across`` blocks over the
      tokens of all views (RVT's ``self_cross_ver=1``).
   5. Translation: per view, each token's features map linearly to its patch's ``patch^2`` pixel
@@ -65,6 +70,7 @@ ALL_VIEWS = "all"
 INPUT_GROUPS: dict[str, tuple[str, ...]] = {"rgb": ("r", "g", "b"), "xyz": ("x", "y", "z"),
                                             "depth": ("depth", "occupancy"), "uv": ()}
 ROTATION_POOLING = ("heatmap", "point")
+CONDITIONING = ("add", "film")
 
 
 @dataclass(frozen=True)
@@ -97,6 +103,10 @@ class PredictorConfig:
     # Where the rotation/gripper head reads its per-view features (item 6 of the module
     # docstring): "heatmap" (RVT-1; checkpoints saved before the field existed) or "point" (RVT-2).
     rotation_pooling: str = "heatmap"
+    # How eps and the proprioception reach the tokens (item 3 of the module docstring): "add" (one
+    # vector added at the input; checkpoints saved before the field existed) or "film" (also a
+    # scale and shift before every block).
+    conditioning: str = "add"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "channel_names", tuple(self.channel_names))
@@ -116,6 +126,8 @@ class PredictorConfig:
             raise ValueError(f"view must be {ALL_VIEWS!r} or one of {list(VIEWS)} (of five rendered views), got {self.view!r}")
         if self.rotation_pooling not in ROTATION_POOLING:
             raise ValueError(f"rotation_pooling must be one of {list(ROTATION_POOLING)}, got {self.rotation_pooling!r}")
+        if self.conditioning not in CONDITIONING:
+            raise ValueError(f"conditioning must be one of {list(CONDITIONING)}, got {self.conditioning!r}")
 
     @property
     def read_channels(self) -> tuple[int, ...]:
@@ -188,6 +200,11 @@ class ActionPredictor(nn.Module):
         )
         self.within = nn.ModuleList(_block(c) for _ in range(c.layers_within))
         self.across = nn.ModuleList(_block(c) for _ in range(c.layers_across))
+        self.film = nn.ModuleList(nn.Linear(c.width, 2 * c.width) for _ in range(c.layers_within + c.layers_across)) \
+            if c.conditioning == "film" else None
+        for layer in self.film or ():  # scale 1, shift 0: the identity until training moves them
+            nn.init.zeros_(layer.weight)
+            nn.init.zeros_(layer.bias)
         self.norm = nn.LayerNorm(c.width)
         self.heatmap_head = nn.Linear(c.width, c.patch * c.patch)
         self.depth_cells = 0 if c.view_index is None else c.image_size
@@ -232,11 +249,11 @@ class ActionPredictor(nn.Module):
         tokens = tokens + self.position + cond[:, None, None, :]
         n = tokens.shape[2]
         x = tokens.reshape(b * v, n, c.width)
-        for block in self.within:
-            x = block(x)
+        for i, block in enumerate(self.within):
+            x = block(self._modulate(x, cond.repeat_interleave(v, dim=0), i))
         x = x.reshape(b, v * n, c.width)
-        for block in self.across:
-            x = block(x)
+        for i, block in enumerate(self.across):
+            x = block(self._modulate(x, cond, c.layers_within + i))
         features = self.norm(x).reshape(b, v, n, c.width)
 
         # Translation: token -> its patch's pixel logits; pixel shuffle lays patches out (B*V, 1, H, W).
@@ -250,6 +267,13 @@ class ActionPredictor(nn.Module):
         gripper = out[:, 3 * c.rotation_bins : 3 * c.rotation_bins + 2]
         depth = out[:, 3 * c.rotation_bins + 2 :] if self.depth_cells else None
         return PredictorOutput(heatmaps, rotation, gripper, depth)
+
+    def _modulate(self, x: torch.Tensor, cond: torch.Tensor, layer: int) -> torch.Tensor:
+        """FiLM before block ``layer``: x (R, N, D) scaled and shifted per row by cond (R, D); x itself without FiLM."""
+        if self.film is None:
+            return x
+        scale, shift = self.film[layer](cond).unsqueeze(1).chunk(2, dim=-1)
+        return x * (1.0 + scale) + shift
 
     def _at_action(self, features: torch.Tensor, heatmaps: torch.Tensor, point: torch.Tensor | None) -> torch.Tensor:
         """(B, V, D) per-view features at the action's location (``config.rotation_pooling``)."""

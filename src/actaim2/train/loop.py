@@ -110,12 +110,17 @@ class Trainer:
 
         A predictor that reads other inputs than the one there (an input ablation: other
         ``inputs`` or ``view``) is not taken from it: it is trained afresh, beside the selector.
+        A FiLM predictor continued from an ``add`` one takes all its weights; FiLM starts at the identity.
         """
         policy = checkpoint.load_policy(stem, self.perception, self.device)
         same_inputs = policy.predictor is not None and (policy.predictor.config.inputs, policy.predictor.config.view) \
             == (self.predictor_config.inputs, self.predictor_config.view)
         if same_inputs:
-            checkpoint.load_state(self.predictor, policy.predictor.state_dict(), "predictor")
+            state = policy.predictor.state_dict()
+            if self.predictor.film is not None and policy.predictor.film is None:
+                # FiLM added to an "add" predictor: its zero-initialised layers keep the parent's outputs at the start
+                state = {**{k: v for k, v in self.predictor.state_dict().items() if k.startswith("film.")}, **state}
+            checkpoint.load_state(self.predictor, state, "predictor")
         if policy.selector is not None and type(policy.selector) is type(self.selector):
             checkpoint.load_state(self.selector, policy.selector.state_dict(), "selector")
         elif policy.selector is not None:  # another selector kind: keep its input statistics only
