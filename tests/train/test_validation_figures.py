@@ -1,16 +1,20 @@
 """`actaim2 validate`'s action figures decode each predictor as it serves: a single-view one
-through its view's heatmap and depth cells, a five-view one through all five views."""
+through its view's heatmap and depth cells, a five-view one through all five views. Its outcome
+figures tell keyposes that follow eps's outcome from keyposes placed by the scene alone."""
 from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
 import pytest
 import torch
 
+from actaim2.data.trajectory import PHASES
 from actaim2.train.checkpoint import perception_record
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer
-from actaim2.train.validation import EMBEDDINGS, action_figures
+from actaim2.train.validation import (EMBEDDINGS, action_figures, mode_chain_figures, outcome_figures, outcome_rates,
+                                     trajectory_outcome)
 from synthetic import PLACEMENT, make_dataset
 from test_stop_gradient import TINY
 
@@ -29,3 +33,60 @@ def test_action_figures_of_five_view_and_single_view_predictors(tmp_path, view):
         assert f.keyframes == len(data.keyframes()) == sum(by_phase[p].keyframes for p in by_phase if p != "all")
         assert 0.0 <= f.translation_median_mm <= f.translation_p90_mm < 2000.0 * PLACEMENT.half_extent
         assert 0.0 <= f.rotation_median_deg <= f.rotation_p90_deg <= 180.0
+
+
+def _follow_case() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One object, six trajectories with REACH keyframes only: outcomes "0+" x4 (reach at x = 0) and
+    "0-" x2 (reach at x = 1); a second object with one outcome only (never counted)."""
+    frames = np.array([[t, 1] for t in range(8)])
+    target = np.zeros((8, 3))
+    target[[4, 5], 0] = 1.0
+    objects = np.array(["a"] * 6 + ["b"] * 2)
+    outcomes = np.array(["0+"] * 4 + ["0-"] * 2 + ["0+"] * 2)
+    return frames, target, objects, outcomes
+
+
+def test_outcome_rates_reward_points_that_follow_the_outcome_and_not_the_majority():
+    frames, target, objects, outcomes = _follow_case()
+    following = outcome_rates(target + 0.1, target, frames, objects, outcomes)["reach"]
+    assert following.keyframes == 6  # object b shows one outcome: left out
+    assert following.nearest_demo_same_outcome == 1.0
+    assert following.majority_outcome == pytest.approx(4 / 6)  # the others' majority is "0+" for every trajectory
+    scene_only = outcome_rates(np.zeros((8, 3)), target, frames, objects, outcomes)["reach"]  # always the majority's place
+    assert scene_only.nearest_demo_same_outcome == pytest.approx(4 / 6) == scene_only.majority_outcome
+    assert set(outcome_rates(target, target, frames, objects, outcomes)) == {"reach"}
+
+
+def test_trajectory_outcome_is_the_dof_that_moved_most_and_its_direction():
+    assert trajectory_outcome([0.1, -0.5, 0.3]) == "1-" and trajectory_outcome([0.4]) == "0+"
+
+
+def test_outcome_figures_run_the_predictor_on_every_keyframe(tmp_path):
+    data, _ = make_dataset(4, resolution=32, seed=5)
+    trainer = Trainer(TINY, data, None, PLACEMENT, perception_record({"synthetic": 1}), "synthetic", tmp_path,
+                      init_distributed("cpu"), show_progress=False)
+    objects, outcomes = ["o"] * len(data), ["0+", "0-"] * (len(data) // 2)
+    figures = outcome_figures(trainer.selector, trainer.predictor, data, objects, outcomes, PLACEMENT, torch.device("cpu"))
+    per_phase = np.bincount(data.keyframes()[:, 1], minlength=4)
+    assert {name: f.keyframes for name, f in figures.items()} == {n: int(c) for n, c in zip(PHASES, per_phase) if c}
+    assert all(0.0 <= f.nearest_demo_same_outcome <= 1.0 for f in figures.values())
+
+
+@pytest.mark.parametrize("kind", ["cgmvae", "cvae"])
+def test_mode_chain_finds_the_mode_in_eps_and_tests_clusters_where_there_are_some(tmp_path, kind):
+    data, modes = make_dataset(24, resolution=32, seed=7)  # z carries each trajectory's mode (synthetic.py)
+    config = dataclasses.replace(TINY, selector=dataclasses.replace(TINY.selector, kind=kind))
+    trainer = Trainer(config, data, None, PLACEMENT, perception_record({"synthetic": 1}), "synthetic", tmp_path,
+                      init_distributed("cpu"), show_progress=False)
+    objects = ["a"] * 12 + ["b"] * 12
+    outcomes = ["0+" if m else "0-" for m in modes]
+    chain = mode_chain_figures(trainer.selector, data, objects, outcomes, torch.device("cpu"), draws=2)
+    assert chain.trajectories == 24
+    assert chain.eps_nearest_same_outcome > 0.9 > chain.majority_outcome
+    if kind == "cvae":
+        assert chain.clusters is None
+    else:
+        assert (chain.clusters.objects, chain.clusters.samples) == (2, 2 * 2 * trainer.selector.config.clusters)
+        assert 0.0 < chain.clusters.p_value <= 1.0
+    one_outcome = mode_chain_figures(trainer.selector, data, objects, ["0+"] * 24, torch.device("cpu"))
+    assert one_outcome.trajectories == 0 and one_outcome.clusters is None

@@ -6,8 +6,9 @@ Examples:
 
 Writes into the run folder: ``curves.png`` (training and validation curves from
 ``history.jsonl``), ``validation.json`` and ``validation.md`` (translation, rotation and gripper
-errors of the predictor, the selector's reconstruction error and cluster usage on the
-visually-labelled successes of ``--split``; see actaim2.train.validation).
+errors of the predictor, whether its keyposes follow the outcome eps names, the selector's
+reconstruction error and cluster usage on the visually-labelled successes of ``--split``; see
+actaim2.train.validation).
 """
 from __future__ import annotations
 
@@ -33,7 +34,9 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.train.curves import plot_curves, read_history
     from actaim2.train.data import dataset_digest, ensure_cache, open_cache
     from actaim2.train.distributed import choose_device
-    from actaim2.train.validation import action_figures, markdown, selector_figures
+    from actaim2.data.storage import DatasetReader
+    from actaim2.train.validation import action_figures, markdown, mode_chain_figures, outcome_figures, selector_figures, \
+        trajectory_outcome
 
     stem = args.checkpoint or args.run / "policy"
     perception = load_perception_config(args.perception)
@@ -50,12 +53,18 @@ def main(args: argparse.Namespace) -> int:
     data = open_cache(args.data, perception, [args.split])
     actions = action_figures(policy.selector, policy.predictor, data, CubePlacement.of(perception), device)
     selector = selector_figures(policy.selector, data, device)
+    entries = DatasetReader(args.data).by_id
+    objects = [entries[t]["object_id"] for t in data.ids]
+    outcomes = [trajectory_outcome(entries[t]["dof_change"]) for t in data.ids]
+    follow = outcome_figures(policy.selector, policy.predictor, data, objects, outcomes, CubePlacement.of(perception), device)
+    chain = mode_chain_figures(policy.selector, data, objects, outcomes, device)
     digest = policy.meta.get("weights_sha256")
     report = {"checkpoint": str(stem), "weights_sha256": digest, "dataset": str(args.data),
               "dataset_digest": dataset_digest(args.data), "split": args.split,
-              "actions": {k: {p: dataclasses.asdict(f) for p, f in v.items()} for k, v in actions.items()}, "selector": selector}
+              "actions": {k: {p: dataclasses.asdict(f) for p, f in v.items()} for k, v in actions.items()}, "selector": selector,
+              "outcome_following": {p: dataclasses.asdict(f) for p, f in follow.items()}, "mode_chain": dataclasses.asdict(chain)}
     (args.run / "validation.json").write_text(json.dumps(report, indent=2) + "\n")
-    text = markdown(args.split, actions, selector)
+    text = markdown(args.split, actions, selector, follow, chain)
     (args.run / "validation.md").write_text(text)
     print(text)
     curves = plot_curves(read_history(args.run), args.run / "curves.png",

@@ -14,6 +14,20 @@ err differently from REACH and GRASP): translation error (median and 90th percen
 to the hand's half-turn symmetry about its approach axis),
 gripper accuracy.
 
+Outcome following (the Mode SSR's offline cause): a trajectory's outcome is the (DoF, direction)
+it moved most (its index entry's ``dof_change``, a fraction of each DoF's range, as the evaluation
+measures). Fed a keyframe's own true eps, does the predicted point lie nearest a demonstrated
+target (same object, same keypose, another trajectory) of that trajectory's outcome? Against
+always guessing the object's most frequent outcome among those other trajectories. Only objects
+whose other trajectories show two or more outcomes count. If the predictor places keyposes by
+the scene alone, the first rate is no better than the second, and no cluster can select a mode.
+
+The links before it, on the same objects (``mode_chain_figures``): does eps name the outcome at
+all (the outcome of each trajectory's nearest other true eps, leave-one-out, against the
+majority), and do the clusters select outcomes (eps drawn from each cluster on the object's
+O_init, labelled by the outcome of its nearest true eps; mutual information of cluster and
+label with the evaluation's permutation test, ``actaim2.eval.mode_dependence``)?
+
 Mode selector: reconstruction error (mean squared error per dimension of eps, standardised
 units, so 1.0 is predicting the mean), cluster usage of the posterior assignments
 q(c | x, y, O) (how many of the K clusters receive validation trajectories) and of the prior
@@ -23,11 +37,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 import torch
 
 from actaim2.data.trajectory import PHASES
+from actaim2.eval.mode_dependence import Dependence, dependence
 from actaim2.models.predictor import ActionPredictor, decode_action, proprio_features
 from actaim2.models.rotation_bins import grasp_geodesic_deg
 from actaim2.models.selector_base import ModeSelector
@@ -89,6 +105,99 @@ def action_figures(selector: ModeSelector, predictor: ActionPredictor, data: Tra
     return out
 
 
+@dataclass(frozen=True)
+class OutcomeFigures:
+    keyframes: int
+    nearest_demo_same_outcome: float  # predicted point's nearest other demonstration has the keyframe's outcome
+    majority_outcome: float  # the object's most frequent other outcome is the keyframe's
+
+
+def trajectory_outcome(dof_change: Sequence[float]) -> str:
+    """"DoF index, direction" of the DoF that moved most (fractions of range), e.g. "1-"."""
+    change = np.asarray(dof_change, dtype=float)
+    k = int(np.argmax(np.abs(change)))
+    return f"{k}{'+' if change[k] > 0 else '-'}"
+
+
+@torch.no_grad()
+def outcome_figures(selector: ModeSelector, predictor: ActionPredictor, data: TrainingData, objects: Sequence[str],
+                    outcomes: Sequence[str], placement: CubePlacement, device: torch.device,
+                    batch_size: int = 16) -> dict[str, OutcomeFigures]:
+    """Per keypose phase: does the point predicted from the true eps follow the trajectory's outcome?
+    ``objects`` and ``outcomes`` are per trajectory of ``data`` (module docstring)."""
+    frames = data.keyframes()
+    points, targets = [], []
+    for chunk in np.array_split(frames, max(1, math.ceil(len(frames) / batch_size))):
+        batch = data.keyframe_batch(chunk, device)
+        out = predictor(batch["views"], selector.standardise(batch["z"]), proprio_features(batch["gripper"], batch["phase"]))
+        points.append(decode_action(out, placement, predictor.config.view_index).position.cpu().numpy())
+        targets.append(batch["keypose"][:, :3].cpu().numpy())
+    return outcome_rates(np.concatenate(points), np.concatenate(targets), frames, np.asarray(objects), np.asarray(outcomes))
+
+
+def outcome_rates(point: np.ndarray, target: np.ndarray, frames: np.ndarray, objects: np.ndarray,
+                  outcomes: np.ndarray) -> dict[str, OutcomeFigures]:
+    """The figures from predicted and demonstrated points (K, 3) of keyframes (K, 2) [trajectory, phase]."""
+    trajectory, phase = frames[:, 0], frames[:, 1]
+    obj, outcome = objects[trajectory], outcomes[trajectory]
+    result: dict[str, OutcomeFigures] = {}
+    for index, name in enumerate(PHASES):
+        hits, majority = [], []
+        for row in np.flatnonzero(phase == index):
+            others = np.flatnonzero((phase == index) & (obj == obj[row]) & (trajectory != trajectory[row]))
+            if len(set(outcome[others])) < 2:
+                continue
+            nearest = others[np.argmin(np.linalg.norm(target[others] - point[row], axis=1))]
+            hits.append(outcome[nearest] == outcome[row])
+            values, counts = np.unique(outcome[others], return_counts=True)
+            majority.append(values[np.argmax(counts)] == outcome[row])
+        if hits:
+            result[name] = OutcomeFigures(len(hits), float(np.mean(hits)), float(np.mean(majority)))
+    return result
+
+
+@dataclass(frozen=True)
+class ModeChainFigures:
+    trajectories: int  # of the objects whose trajectories show two or more outcomes
+    eps_nearest_same_outcome: float  # the nearest other true eps (same object) has the trajectory's outcome
+    majority_outcome: float  # the object's most frequent other outcome is the trajectory's
+    clusters: Dependence | None  # cluster against the outcome its drawn eps lie nearest (None: no clusters)
+
+
+@torch.no_grad()
+def mode_chain_figures(selector: ModeSelector, data: TrainingData, objects: Sequence[str], outcomes: Sequence[str],
+                       device: torch.device, draws: int = 4, seed: int = 0) -> ModeChainFigures:
+    """Does eps name the outcome, and do the selector's clusters select it (module docstring)?"""
+    objects, outcomes = np.asarray(objects), np.asarray(outcomes)
+    generator = torch.Generator(device=device).manual_seed(seed)
+    with_clusters = selector.config.kind != "cvae"
+    hits, majority, per_object = [], [], []
+    for obj in np.unique(objects):
+        rows = np.flatnonzero(objects == obj)
+        if len(set(outcomes[rows])) < 2:
+            continue
+        views, z = data.selector_batch(rows, device)
+        true = selector.standardise(z)
+        distance = torch.cdist(true, true).cpu().numpy()
+        np.fill_diagonal(distance, np.inf)
+        for i, row in enumerate(rows):
+            others = np.delete(rows, i)
+            hits.append(outcomes[rows[np.argmin(distance[i])]] == outcomes[row])
+            values, counts = np.unique(outcomes[others], return_counts=True)
+            majority.append(values[np.argmax(counts)] == outcomes[row])
+        if with_clusters:
+            condition = views[:1].expand(draws, *views.shape[1:])
+            groups, labels = [], []
+            for cluster in range(selector.config.clusters):
+                drawn = selector.sample(condition, cluster, generator).eps
+                labels += list(outcomes[rows[torch.cdist(drawn, true).argmin(dim=1).cpu().numpy()]])
+                groups += [cluster] * draws
+            per_object.append((np.asarray(groups), np.unique(labels, return_inverse=True)[1]))
+    return ModeChainFigures(len(hits), float(np.mean(hits)) if hits else float("nan"),
+                            float(np.mean(majority)) if majority else float("nan"),
+                            dependence(per_object) if with_clusters and per_object else None)
+
+
 @torch.no_grad()
 def selector_figures(selector: ModeSelector, data: TrainingData, device: torch.device, seed: int = 0,
                      batch_size: int = 32) -> dict:
@@ -112,7 +221,8 @@ def selector_figures(selector: ModeSelector, data: TrainingData, device: torch.d
             "posterior": usage(assigned_all), "prior_draws": usage(drawn_all)}
 
 
-def markdown(split: str, actions: dict[str, dict[str, ActionFigures]], selector: dict) -> str:
+def markdown(split: str, actions: dict[str, dict[str, ActionFigures]], selector: dict,
+             outcomes: dict[str, OutcomeFigures], chain: ModeChainFigures) -> str:
     """The figures as the README shows them: over all keyframes, then per keypose phase."""
     lines = [f"Validation on the visually-labelled successes of `{split}` "
              f"({selector['trajectories']} trajectories, {actions['reconstructed']['all'].keyframes} keyframes):", "",
@@ -129,6 +239,20 @@ def markdown(split: str, actions: dict[str, dict[str, ActionFigures]], selector:
         rec, true = actions["reconstructed"][phase], actions["true"][phase]
         lines.append(f"| {phase.upper()} | {true.keyframes} | {rec.translation_median_mm:.0f} / {true.translation_median_mm:.0f} | "
                      f"{rec.rotation_median_deg:.1f} / {true.rotation_median_deg:.1f} |")
+    if chain.trajectories:
+        clusters = chain.clusters.cell() if chain.clusters else "no clusters"
+        lines += ["", f"Mode chain ({chain.trajectories} trajectories of objects showing two or more outcomes): the nearest "
+                  f"other true eps has the trajectory's outcome {100 * chain.eps_nearest_same_outcome:.1f} % (most frequent "
+                  f"other outcome: {100 * chain.majority_outcome:.1f} %); cluster against the outcome of its drawn eps' "
+                  f"nearest true eps, MI {clusters}."]
+    else:
+        lines += ["", "Mode chain and outcome following: no object's trajectories show two or more outcomes."]
+    lines += ["", "Outcome following (true z; objects whose other trajectories show two or more outcomes): the "
+              "predicted point's nearest other demonstration has the trajectory's outcome / the object's most "
+              "frequent other outcome is the trajectory's:", "",
+              "| keypose | keyframes | nearest demonstration | most frequent outcome |", "|---|---|---|---|"]
+    for phase, f in outcomes.items():
+        lines.append(f"| {phase.upper()} | {f.keyframes} | {100 * f.nearest_demo_same_outcome:.1f} % | {100 * f.majority_outcome:.1f} % |")
     post, prior = selector["posterior"], selector["prior_draws"]
     k = len(post["counts"])
     lines += ["", f"Selector: reconstruction MSE {selector['reconstruction_mse']:.3f} per dimension of standardised eps "
