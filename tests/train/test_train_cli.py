@@ -118,6 +118,11 @@ def test_train_command_runs_all_phases_and_writes_loadable_checkpoints(dataset, 
     text = (out / "validation.md").read_text()
     assert (out / "curves.png").stat().st_size > 10_000 and "| true z" in text and "| MANIPULATE | 11 |" in text
     assert "Mode chain" in text
+    # A checkpoint outside a run folder (as shipped): the figures, no curves.
+    shipped = tmp_path / "shipped"
+    assert cli_main(["validate", str(shipped), "--checkpoint", str(out / "policy"), "--data", str(dataset),
+                     "--split", "train_seen", "--no-progress"]) == 0
+    assert (shipped / "validation.md").read_text() == text and not (shipped / "curves.png").exists()
 
 
 def test_baseline_selector_reuses_the_goal_rvt_predictor(dataset, tmp_path):

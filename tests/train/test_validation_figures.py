@@ -50,10 +50,11 @@ def test_outcome_rates_reward_points_that_follow_the_outcome_and_not_the_majorit
     frames, target, objects, outcomes = _follow_case()
     following = outcome_rates(target + 0.1, target, frames, objects, outcomes)["reach"]
     assert following.keyframes == 6  # object b shows one outcome: left out
-    assert following.nearest_demo_same_outcome == 1.0
+    assert following.nearest_demo_same_outcome == 1.0 == following.demonstrated_point
     assert following.majority_outcome == pytest.approx(4 / 6)  # the others' majority is "0+" for every trajectory
     scene_only = outcome_rates(np.zeros((8, 3)), target, frames, objects, outcomes)["reach"]  # always the majority's place
     assert scene_only.nearest_demo_same_outcome == pytest.approx(4 / 6) == scene_only.majority_outcome
+    assert scene_only.demonstrated_point == 1.0  # the demonstrations themselves tell the outcomes apart
     assert set(outcome_rates(target, target, frames, objects, outcomes)) == {"reach"}
 
 

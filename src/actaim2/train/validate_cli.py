@@ -2,10 +2,11 @@
 
 Examples:
     actaim2 validate runs/cpu --data data/v2                       # runs/cpu/policy on train_unseen_instance
+    actaim2 validate runs/ring5 --data data/v2 --checkpoint actaim2_policy/checkpoints/actaim2_ring5   # no curves
     actaim2 validate runs/cpu --data data/v2 --split heldout_category
 
 Writes into the run folder: ``curves.png`` (training and validation curves from
-``history.jsonl``), ``validation.json`` and ``validation.md`` (translation, rotation and gripper
+``history.jsonl``; a folder without it, e.g. for a shipped checkpoint, gets none), ``validation.json`` and ``validation.md`` (translation, rotation and gripper
 errors of the predictor, whether its keyposes follow the outcome eps names, the selector's
 reconstruction error and cluster usage on the visually-labelled successes of ``--split``; see
 actaim2.train.validation).
@@ -19,7 +20,8 @@ from pathlib import Path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("run", type=Path, help="an `actaim2 train` run folder (history.jsonl, policy)")
+    parser.add_argument("run", type=Path, help="an `actaim2 train` run folder (history.jsonl, policy), or with "
+                        "--checkpoint any folder to write the figures into (no curves without history.jsonl)")
     parser.add_argument("--data", type=Path, required=True, help="the dataset folder the run was trained on")
     parser.add_argument("--checkpoint", type=Path, help="policy checkpoint stem (default <run>/policy)")
     parser.add_argument("--split", default="train_unseen_instance", help="split whose successes are measured")
@@ -39,6 +41,7 @@ def main(args: argparse.Namespace) -> int:
         trajectory_outcome
 
     stem = args.checkpoint or args.run / "policy"
+    args.run.mkdir(parents=True, exist_ok=True)
     perception = load_perception_config(args.perception)
     device = choose_device("auto")
     try:
@@ -67,7 +70,9 @@ def main(args: argparse.Namespace) -> int:
     text = markdown(args.split, actions, selector, follow, chain)
     (args.run / "validation.md").write_text(text)
     print(text)
-    curves = plot_curves(read_history(args.run), args.run / "curves.png",
-                         title=f"{args.run} (weights {str(digest)[:12]}), validation: 10% of train_seen")
-    print(f"wrote {curves}, {args.run / 'validation.json'}, {args.run / 'validation.md'}")
+    written = [args.run / "validation.json", args.run / "validation.md"]
+    if (args.run / "history.jsonl").exists():  # a training run: its curves too
+        written.append(plot_curves(read_history(args.run), args.run / "curves.png",
+                                   title=f"{args.run} (weights {str(digest)[:12]}), validation: 10% of train_seen"))
+    print("wrote " + ", ".join(map(str, written)))
     return 0

@@ -21,6 +21,8 @@ target (same object, same keypose, another trajectory) of that trajectory's outc
 always guessing the object's most frequent outcome among those other trajectories. Only objects
 whose other trajectories show two or more outcomes count. If the predictor places keyposes by
 the scene alone, the first rate is no better than the second, and no cluster can select a mode.
+The same rate for the demonstrated point itself is the most a predictor can score: different
+outcomes often start at the same handle, so it is highest at MANIPULATE.
 
 The links before it, on the same objects (``mode_chain_figures``): does eps name the outcome at
 all (the outcome of each trajectory's nearest other true eps, leave-one-out, against the
@@ -110,6 +112,7 @@ class OutcomeFigures:
     keyframes: int
     nearest_demo_same_outcome: float  # predicted point's nearest other demonstration has the keyframe's outcome
     majority_outcome: float  # the object's most frequent other outcome is the keyframe's
+    demonstrated_point: float  # the first rate for the demonstrated point itself: what a perfect predictor scores
 
 
 def trajectory_outcome(dof_change: Sequence[float]) -> str:
@@ -142,17 +145,17 @@ def outcome_rates(point: np.ndarray, target: np.ndarray, frames: np.ndarray, obj
     obj, outcome = objects[trajectory], outcomes[trajectory]
     result: dict[str, OutcomeFigures] = {}
     for index, name in enumerate(PHASES):
-        hits, majority = [], []
+        hits, majority, ceiling = [], [], []
         for row in np.flatnonzero(phase == index):
             others = np.flatnonzero((phase == index) & (obj == obj[row]) & (trajectory != trajectory[row]))
             if len(set(outcome[others])) < 2:
                 continue
-            nearest = others[np.argmin(np.linalg.norm(target[others] - point[row], axis=1))]
-            hits.append(outcome[nearest] == outcome[row])
+            for scores, at in ((hits, point[row]), (ceiling, target[row])):
+                scores.append(outcome[others[np.argmin(np.linalg.norm(target[others] - at, axis=1))]] == outcome[row])
             values, counts = np.unique(outcome[others], return_counts=True)
             majority.append(values[np.argmax(counts)] == outcome[row])
         if hits:
-            result[name] = OutcomeFigures(len(hits), float(np.mean(hits)), float(np.mean(majority)))
+            result[name] = OutcomeFigures(len(hits), float(np.mean(hits)), float(np.mean(majority)), float(np.mean(ceiling)))
     return result
 
 
@@ -248,11 +251,12 @@ def markdown(split: str, actions: dict[str, dict[str, ActionFigures]], selector:
     else:
         lines += ["", "Mode chain and outcome following: no object's trajectories show two or more outcomes."]
     lines += ["", "Outcome following (true z; objects whose other trajectories show two or more outcomes): the "
-              "predicted point's nearest other demonstration has the trajectory's outcome / the object's most "
-              "frequent other outcome is the trajectory's:", "",
-              "| keypose | keyframes | nearest demonstration | most frequent outcome |", "|---|---|---|---|"]
+              "nearest other demonstration has the trajectory's outcome, from the predicted point and from the "
+              "demonstrated one (the most a predictor can score); the object's most frequent other outcome is the trajectory's:", "",
+              "| keypose | keyframes | predicted point | demonstrated point | most frequent outcome |", "|---|---|---|---|---|"]
     for phase, f in outcomes.items():
-        lines.append(f"| {phase.upper()} | {f.keyframes} | {100 * f.nearest_demo_same_outcome:.1f} % | {100 * f.majority_outcome:.1f} % |")
+        lines.append(f"| {phase.upper()} | {f.keyframes} | {100 * f.nearest_demo_same_outcome:.1f} % | "
+                     f"{100 * f.demonstrated_point:.1f} % | {100 * f.majority_outcome:.1f} % |")
     post, prior = selector["posterior"], selector["prior_draws"]
     k = len(post["counts"])
     lines += ["", f"Selector: reconstruction MSE {selector['reconstruction_mse']:.3f} per dimension of standardised eps "
