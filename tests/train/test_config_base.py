@@ -57,5 +57,11 @@ def test_the_third_steps_control_is_structured_demos_but_for_ten_epochs():
     base = load_config("structured_demos")
     config = load_config("third_step_control")
     assert config == dataclasses.replace(base, predictor_phase=dataclasses.replace(base.predictor_phase, epochs=10))
-    for step in ("point_pooling", "rotation_smoothing"):
+    for step in ("point_pooling", "rotation_smoothing", "film_conditioning", "eps_noise_off"):
         assert load_config(step).predictor_phase == config.predictor_phase
+
+
+def test_eps_noise_off_is_the_third_steps_control_but_for_the_noise():
+    control, step = load_config("third_step_control"), load_config("eps_noise_off")
+    assert control.eps_noise == 0.5 and step.eps_noise == 0.0
+    assert dataclasses.replace(step, eps_noise=control.eps_noise) == control
