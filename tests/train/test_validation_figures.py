@@ -14,7 +14,7 @@ from actaim2.train.checkpoint import perception_record
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer
 from actaim2.train.validation import (EMBEDDINGS, action_figures, mode_chain_figures, outcome_figures, outcome_rates,
-                                     trajectory_outcome)
+                                     predict_keyframes, trajectory_outcome)
 from synthetic import PLACEMENT, make_dataset
 from test_stop_gradient import TINY
 
@@ -26,7 +26,7 @@ def test_action_figures_of_five_view_and_single_view_predictors(tmp_path, view):
     trainer = Trainer(config, data, None, PLACEMENT, perception_record({"synthetic": 1}), "synthetic", tmp_path,
                       init_distributed("cpu"), show_progress=False)
     assert (trainer.predictor.config.view_index is None) == (view == "all")
-    figures = action_figures(trainer.selector, trainer.predictor, data, PLACEMENT, torch.device("cpu"))
+    figures = action_figures(predict_keyframes(trainer.selector, trainer.predictor, data, PLACEMENT, torch.device("cpu")))
     assert set(figures) == set(EMBEDDINGS)
     for by_phase in figures.values():
         f = by_phase["all"]
@@ -67,7 +67,8 @@ def test_outcome_figures_run_the_predictor_on_every_keyframe(tmp_path):
     trainer = Trainer(TINY, data, None, PLACEMENT, perception_record({"synthetic": 1}), "synthetic", tmp_path,
                       init_distributed("cpu"), show_progress=False)
     objects, outcomes = ["o"] * len(data), ["0+", "0-"] * (len(data) // 2)
-    figures = outcome_figures(trainer.selector, trainer.predictor, data, objects, outcomes, PLACEMENT, torch.device("cpu"))
+    predictions = predict_keyframes(trainer.selector, trainer.predictor, data, PLACEMENT, torch.device("cpu"))
+    figures = outcome_figures(predictions, objects, outcomes)
     per_phase = np.bincount(data.keyframes()[:, 1], minlength=4)
     assert {name: f.keyframes for name, f in figures.items()} == {n: int(c) for n, c in zip(PHASES, per_phase) if c}
     assert all(0.0 <= f.nearest_demo_same_outcome <= 1.0 for f in figures.values())

@@ -37,8 +37,8 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.train.data import dataset_digest, ensure_cache, open_cache
     from actaim2.train.distributed import choose_device
     from actaim2.data.storage import DatasetReader
-    from actaim2.train.validation import action_figures, markdown, mode_chain_figures, outcome_figures, selector_figures, \
-        trajectory_outcome
+    from actaim2.train.validation import action_figures, markdown, mode_chain_figures, outcome_figures, predict_keyframes, \
+        selector_figures, trajectory_outcome
 
     stem = args.checkpoint or args.run / "policy"
     args.run.mkdir(parents=True, exist_ok=True)
@@ -54,12 +54,13 @@ def main(args: argparse.Namespace) -> int:
         return 1
     ensure_cache(args.data, perception, [args.split], not args.no_progress, allow_held_out=True)  # measuring, not training
     data = open_cache(args.data, perception, [args.split])
-    actions = action_figures(policy.selector, policy.predictor, data, CubePlacement.of(perception), device)
+    predictions = predict_keyframes(policy.selector, policy.predictor, data, CubePlacement.of(perception), device)
+    actions = action_figures(predictions)
     selector = selector_figures(policy.selector, data, device)
     entries = DatasetReader(args.data).by_id
     objects = [entries[t]["object_id"] for t in data.ids]
     outcomes = [trajectory_outcome(entries[t]["dof_change"]) for t in data.ids]
-    follow = outcome_figures(policy.selector, policy.predictor, data, objects, outcomes, CubePlacement.of(perception), device)
+    follow = outcome_figures(predictions, objects, outcomes)
     chain = mode_chain_figures(policy.selector, data, objects, outcomes, device)
     digest = policy.meta.get("weights_sha256")
     report = {"checkpoint": str(stem), "weights_sha256": digest, "dataset": str(args.data),

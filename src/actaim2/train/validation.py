@@ -77,31 +77,53 @@ def _figures(t: np.ndarray, r: np.ndarray, g: np.ndarray) -> ActionFigures:
                          float(np.percentile(r, 90)), float(g.mean()))
 
 
+@dataclass(frozen=True)
+class KeyframePredictions:
+    """The predictor's keyposes for every keyframe of the data, per embedding fed (``EMBEDDINGS``)."""
+
+    frames: np.ndarray  # (K, 2) [trajectory, phase]
+    truth: np.ndarray  # (K, 8) the recorded keyposes
+    position: dict[str, np.ndarray]  # (K, 3) world metres
+    quat_xyzw: dict[str, np.ndarray]  # (K, 4)
+    gripper_closed: dict[str, np.ndarray]  # (K,) bool
+
+
 @torch.no_grad()
-def action_figures(selector: ModeSelector, predictor: ActionPredictor, data: TrainingData, placement: CubePlacement,
-                   device: torch.device, batch_size: int = 16) -> dict[str, dict[str, ActionFigures]]:
-    """Errors of the predicted keyposes against the recorded ones: per embedding fed, over all
-    keyframes (``"all"``) and per keypose phase (``"init"`` ... ``"manipulate"``, where it has keyframes)."""
+def predict_keyframes(selector: ModeSelector, predictor: ActionPredictor, data: TrainingData, placement: CubePlacement,
+                      device: torch.device, batch_size: int = 16) -> KeyframePredictions:
+    """One pass of the predictor over the keyframes per embedding; every figure below reads it."""
     frames = data.keyframes()
     if len(frames) == 0:
         raise ValueError("no keyframe with a target inside the cube")
-    errors: dict[str, dict[str, list[np.ndarray]]] = {k: {"t": [], "r": [], "g": []} for k in EMBEDDINGS}
+    truth: list[np.ndarray] = []
+    decoded: dict[str, list] = {k: [] for k in EMBEDDINGS}
     for chunk in np.array_split(frames, max(1, math.ceil(len(frames) / batch_size))):
         batch = data.keyframe_batch(chunk, device)
         proprio = proprio_features(batch["gripper"], batch["phase"])
         eps = _eps(selector, batch["init_views"], batch["z"])
-        truth = batch["keypose"].cpu().numpy()
+        truth.append(batch["keypose"].cpu().numpy())
         for kind in EMBEDDINGS:
-            action = decode_action(predictor(batch["views"], eps[kind], proprio), placement, predictor.config.view_index)
-            errors[kind]["t"].append(1000.0 * np.linalg.norm(action.position.cpu().numpy() - truth[:, :3], axis=1))
-            errors[kind]["r"].append(grasp_geodesic_deg(action.quat_xyzw.cpu().double().numpy(), truth[:, 3:7].astype(np.float64)))
-            errors[kind]["g"].append(action.gripper_closed.cpu().numpy() == (truth[:, 7] > 0.5))
+            decoded[kind].append(decode_action(predictor(batch["views"], eps[kind], proprio), placement, predictor.config.view_index))
+
+    def join(kind: str, field: str) -> np.ndarray:
+        return np.concatenate([getattr(a, field).cpu().numpy() for a in decoded[kind]])
+
+    return KeyframePredictions(frames, np.concatenate(truth), {k: join(k, "position") for k in EMBEDDINGS},
+                               {k: join(k, "quat_xyzw") for k in EMBEDDINGS}, {k: join(k, "gripper_closed") for k in EMBEDDINGS})
+
+
+def action_figures(predictions: KeyframePredictions) -> dict[str, dict[str, ActionFigures]]:
+    """Errors of the predicted keyposes against the recorded ones: per embedding fed, over all
+    keyframes (``"all"``) and per keypose phase (``"init"`` ... ``"manipulate"``, where it has keyframes)."""
+    truth, phase = predictions.truth, predictions.frames[:, 1]
     out: dict[str, dict[str, ActionFigures]] = {}
-    for kind, e in errors.items():
-        t, r, g = (np.concatenate(e[key]) for key in ("t", "r", "g"))
+    for kind in EMBEDDINGS:
+        t = 1000.0 * np.linalg.norm(predictions.position[kind] - truth[:, :3], axis=1)
+        r = grasp_geodesic_deg(predictions.quat_xyzw[kind].astype(np.float64), truth[:, 3:7].astype(np.float64))
+        g = predictions.gripper_closed[kind] == (truth[:, 7] > 0.5)
         out[kind] = {"all": _figures(t, r, g)}
         for index, name in enumerate(PHASES):
-            rows = frames[:, 1] == index
+            rows = phase == index
             if rows.any():
                 out[kind][name] = _figures(t[rows], r[rows], g[rows])
     return out
@@ -122,20 +144,18 @@ def trajectory_outcome(dof_change: Sequence[float]) -> str:
     return f"{k}{'+' if change[k] > 0 else '-'}"
 
 
-@torch.no_grad()
-def outcome_figures(selector: ModeSelector, predictor: ActionPredictor, data: TrainingData, objects: Sequence[str],
-                    outcomes: Sequence[str], placement: CubePlacement, device: torch.device,
-                    batch_size: int = 16) -> dict[str, OutcomeFigures]:
+def outcome_figures(predictions: KeyframePredictions, objects: Sequence[str],
+                    outcomes: Sequence[str]) -> dict[str, OutcomeFigures]:
     """Per keypose phase: does the point predicted from the true eps follow the trajectory's outcome?
-    ``objects`` and ``outcomes`` are per trajectory of ``data`` (module docstring)."""
-    frames = data.keyframes()
-    points, targets = [], []
-    for chunk in np.array_split(frames, max(1, math.ceil(len(frames) / batch_size))):
-        batch = data.keyframe_batch(chunk, device)
-        out = predictor(batch["views"], selector.standardise(batch["z"]), proprio_features(batch["gripper"], batch["phase"]))
-        points.append(decode_action(out, placement, predictor.config.view_index).position.cpu().numpy())
-        targets.append(batch["keypose"][:, :3].cpu().numpy())
-    return outcome_rates(np.concatenate(points), np.concatenate(targets), frames, np.asarray(objects), np.asarray(outcomes))
+    ``objects`` and ``outcomes`` are per trajectory of the predicted data (module docstring)."""
+    return outcome_rates(predictions.position["true"], predictions.truth[:, :3], predictions.frames,
+                         np.asarray(objects), np.asarray(outcomes))
+
+
+def _is_most_frequent(outcome: str, others: np.ndarray) -> bool:
+    """Would guessing the most frequent of ``others`` (ties: the first by name) give ``outcome``?"""
+    values, counts = np.unique(others, return_counts=True)
+    return bool(values[np.argmax(counts)] == outcome)
 
 
 def outcome_rates(point: np.ndarray, target: np.ndarray, frames: np.ndarray, objects: np.ndarray,
@@ -152,8 +172,7 @@ def outcome_rates(point: np.ndarray, target: np.ndarray, frames: np.ndarray, obj
                 continue
             for scores, at in ((hits, point[row]), (ceiling, target[row])):
                 scores.append(outcome[others[np.argmin(np.linalg.norm(target[others] - at, axis=1))]] == outcome[row])
-            values, counts = np.unique(outcome[others], return_counts=True)
-            majority.append(values[np.argmax(counts)] == outcome[row])
+            majority.append(_is_most_frequent(outcome[row], outcome[others]))
         if hits:
             result[name] = OutcomeFigures(len(hits), float(np.mean(hits)), float(np.mean(majority)), float(np.mean(ceiling)))
     return result
@@ -184,10 +203,8 @@ def mode_chain_figures(selector: ModeSelector, data: TrainingData, objects: Sequ
         distance = torch.cdist(true, true).cpu().numpy()
         np.fill_diagonal(distance, np.inf)
         for i, row in enumerate(rows):
-            others = np.delete(rows, i)
             hits.append(outcomes[rows[np.argmin(distance[i])]] == outcomes[row])
-            values, counts = np.unique(outcomes[others], return_counts=True)
-            majority.append(values[np.argmax(counts)] == outcomes[row])
+            majority.append(_is_most_frequent(outcomes[row], outcomes[np.delete(rows, i)]))
         if with_clusters:
             condition = views[:1].expand(draws, *views.shape[1:])
             groups, labels = [], []
