@@ -139,12 +139,17 @@ class TeleopNode(Node):
             keys.write(f"{name} (gripper {'closed' if k.gripper_closed else 'open'}): executing ...")
             ok, message = self.out.execute(k, float(self.p["velocity_scaling"]), float(self.p["goal_timeout"]), stop)
             self.session.marked(k, ok)
-            keys.write(f"{name} {'executed' if ok else 'FAILED (mark it again)'}: {message}")
             try:
                 self.session.sync(self.arm.arm_state().position)
+                synced = ""
             except RuntimeError as exc:  # no fresh joint states: the target stays the marked one
-                keys.write(str(exc))
+                synced = str(exc)
+            # Discard before saying so: the operator reads "executed" as "keys count again", so a key
+            # typed once it shows must not be thrown away with those typed while the arm moved.
             dropped = keys.discard_typed()
+            keys.write(f"{name} {'executed' if ok else 'FAILED (mark it again)'}: {message}")
+            if synced:
+                keys.write(synced)
             if dropped:
                 keys.write(f"({dropped} keys typed while the arm moved were discarded)")
         elif isinstance(effect, Label):
