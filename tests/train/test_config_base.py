@@ -57,7 +57,7 @@ def test_the_third_steps_control_is_structured_demos_but_for_ten_epochs():
     base = load_config("structured_demos")
     config = load_config("third_step_control")
     assert config == dataclasses.replace(base, predictor_phase=dataclasses.replace(base.predictor_phase, epochs=10))
-    for step in ("point_pooling", "rotation_smoothing", "film_conditioning", "eps_noise_off"):
+    for step in ("point_pooling", "rotation_smoothing", "film_conditioning", "eps_noise_off", "mode_query"):
         assert load_config(step).predictor_phase == config.predictor_phase
 
 

@@ -13,8 +13,9 @@ from actaim2.data.trajectory import PHASES
 from actaim2.train.checkpoint import perception_record
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer
+from actaim2.data.storage import trajectory_outcome
 from actaim2.train.validation import (EMBEDDINGS, action_figures, mode_chain_figures, outcome_figures, outcome_rates,
-                                     predict_keyframes, trajectory_outcome)
+                                     predict_keyframes)
 from synthetic import PLACEMENT, make_dataset
 from test_stop_gradient import TINY
 

@@ -57,7 +57,8 @@ from actaim2.data.random_sampler import RandomSampler, SamplingConfig
 from actaim2.data.real_objects import FolderObject
 from actaim2.data.splits import TRAIN, check_no_leak, split_of
 from actaim2.data.stats import RUNS_FILE
-from actaim2.data.storage import DatasetReader, DatasetWriter, EncodedTrajectory, encode_trajectory, trajectory_id
+from actaim2.data.storage import (DatasetReader, DatasetWriter, EncodedTrajectory, encode_trajectory, object_of,
+                                  trajectory_id)
 from actaim2.data.trajectory import CameraImage, ObjectState, Observation, Trajectory
 from actaim2.perception.config import CAPTURE_FIELDS, RENDER_PATHS, PerceptionConfig, capture_part, check_compatible, load_perception_config
 from actaim2.robots import load_robot_spec
@@ -379,17 +380,17 @@ def top_up_tasks(config: CollectConfig) -> list[Task]:
     one side only): random trajectories, indices past the random count, keep every object at
     its explore count. Derived from skipped.jsonl, so a resumed run asks for the same tasks.
     """
-    skipped: dict[str, int] = {}  # trajectory id prefix <object>-: explore trajectories given up on
+    skipped: dict[str, int] = {}  # object id: explore trajectories given up on
     path = config.out / SKIPPED_FILE
     for line in path.read_text().splitlines() if path.exists() else []:
         record = json.loads(line)
         if record["sampler"] in EXPLORE_SAMPLERS:
-            prefix = record["id"].rsplit("-", 2)[0]  # trajectory_id: <object>-<sampler>-<index>
-            skipped[prefix] = skipped.get(prefix, 0) + 1
+            oid = object_of(record["id"])
+            skipped[oid] = skipped.get(oid, 0) + 1
     tasks = []
     for oid, category, instance, split, folder in collection_objects(config):
         start = per_object(config, "random", split)
-        for k in range(start, start + skipped.get(trajectory_id(oid, "random", 0).rsplit("-", 2)[0], 0)):
+        for k in range(start, start + skipped.get(oid, 0)):
             tasks.append(Task(trajectory_id(oid, "random", k), category, instance, split, "random", k,
                               derive_seed(config.seed, oid, SAMPLER_CODES["random"], k), None, folder))
     return tasks

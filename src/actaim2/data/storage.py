@@ -32,6 +32,7 @@ import json
 import os
 import tarfile
 from dataclasses import dataclass
+from typing import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -87,6 +88,18 @@ def trajectory_id(object_id: str, sampler: str, index: int) -> str:
 def sampler_of(trajectory: str) -> str:
     """The sampler named in a :func:`trajectory_id` (object ids may hold dashes, samplers do not)."""
     return trajectory.rsplit("-", 2)[1]
+
+
+def object_of(trajectory: str) -> str:
+    """The object named in a :func:`trajectory_id` (everything before its sampler and index)."""
+    return trajectory.rsplit("-", 2)[0]
+
+
+def trajectory_outcome(dof_change: Sequence[float]) -> str:
+    """"DoF index, direction" of the DoF that moved most (fractions of range), e.g. "1-"."""
+    change = np.asarray(dof_change, dtype=float)
+    k = int(np.argmax(np.abs(change)))
+    return f"{k}{'+' if change[k] > 0 else '-'}"
 
 
 @dataclass

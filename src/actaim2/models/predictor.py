@@ -25,7 +25,13 @@ Network, as RVT's MVT:
      Why: an added vector shifts all tokens alike, so choosing *which* part to reach by the mode
      takes the blocks' MLPs to multiply it with each token's content; FiLM multiplies directly.
      Its layers start at zero (the identity), so a predictor continued from an ``add`` one starts
-     as that one.
+     as that one. With ``query`` the conditioning instead scores every patch at the output: a
+     projection of it dotted with a projection of each token's final features is added to that
+     patch's pixel logits (the product of a language query and pixel features by which CLIPort
+     and PerAct pick *where* an instruction points). Why: a mode names which part to grasp, and
+     with ``add`` the heatmap head is linear in features that carry the mode alike for every
+     token; the product makes a patch's score depend on mode and patch content together. Its
+     query projection starts at zero, so a predictor continued from an ``add`` one starts as that one.
   4. ``layers_within`` blocks attend within each view, then ``layers_across`` blocks over the
      tokens of all views (RVT's ``self_cross_ver=1``).
   5. Translation: per view, each token's features map linearly to its patch's ``patch^2`` pixel
@@ -70,7 +76,7 @@ ALL_VIEWS = "all"
 INPUT_GROUPS: dict[str, tuple[str, ...]] = {"rgb": ("r", "g", "b"), "xyz": ("x", "y", "z"),
                                             "depth": ("depth", "occupancy"), "uv": ()}
 ROTATION_POOLING = ("heatmap", "point")
-CONDITIONING = ("add", "film")
+CONDITIONING = ("add", "film", "query")
 
 
 @dataclass(frozen=True)
@@ -104,8 +110,9 @@ class PredictorConfig:
     # docstring): "heatmap" (RVT-1; checkpoints saved before the field existed) or "point" (RVT-2).
     rotation_pooling: str = "heatmap"
     # How eps and the proprioception reach the tokens (item 3 of the module docstring): "add" (one
-    # vector added at the input; checkpoints saved before the field existed) or "film" (also a
-    # scale and shift before every block).
+    # vector added at the input; checkpoints saved before the field existed), "film" (also a
+    # scale and shift before every block) or "query" (also a per-patch heatmap score, the product
+    # of the conditioning and the patch's features).
     conditioning: str = "add"
 
     def __post_init__(self) -> None:
@@ -205,6 +212,11 @@ class ActionPredictor(nn.Module):
         for layer in self.film or ():  # scale 1, shift 0: the identity until training moves them
             nn.init.zeros_(layer.weight)
             nn.init.zeros_(layer.bias)
+        self.query = nn.Linear(c.width, c.width) if c.conditioning == "query" else None
+        self.key = nn.Linear(c.width, c.width, bias=False) if c.conditioning == "query" else None
+        if self.query is not None:  # no score until training moves it: a continued "add" predictor's outputs
+            nn.init.zeros_(self.query.weight)
+            nn.init.zeros_(self.query.bias)
         self.norm = nn.LayerNorm(c.width)
         self.heatmap_head = nn.Linear(c.width, c.patch * c.patch)
         self.depth_cells = 0 if c.view_index is None else c.image_size
@@ -257,7 +269,8 @@ class ActionPredictor(nn.Module):
         features = self.norm(x).reshape(b, v, n, c.width)
 
         # Translation: token -> its patch's pixel logits; pixel shuffle lays patches out (B*V, 1, H, W).
-        logits = self.heatmap_head(features).reshape(b * v, self.grid, self.grid, c.patch * c.patch)
+        logits = self.heatmap_head(features) + self._mode_score(features, cond)
+        logits = logits.reshape(b * v, self.grid, self.grid, c.patch * c.patch)
         heatmaps = F.pixel_shuffle(logits.permute(0, 3, 1, 2), c.patch).reshape(b, v, h, w)
 
         # Rotation and gripper from features pooled per view: max, and the features at the action.
@@ -274,6 +287,13 @@ class ActionPredictor(nn.Module):
             return x
         scale, shift = self.film[layer](cond).unsqueeze(1).chunk(2, dim=-1)
         return x * (1.0 + scale) + shift
+
+    def _mode_score(self, features: torch.Tensor, cond: torch.Tensor) -> torch.Tensor | float:
+        """(B, V, N, 1) the conditioning's score of every patch, added to all its pixel logits; 0 without ``query``."""
+        if self.query is None:
+            return 0.0
+        q = self.query(cond)[:, None, :, None]  # (B, 1, D, 1)
+        return torch.matmul(self.key(features), q) / self.config.width ** 0.5
 
     def _at_action(self, features: torch.Tensor, heatmaps: torch.Tensor, point: torch.Tensor | None) -> torch.Tensor:
         """(B, V, D) per-view features at the action's location (``config.rotation_pooling``)."""

@@ -76,6 +76,13 @@ def rotation_soft_targets(bins: torch.Tensor, n_bins: int, sigma_deg: float) -> 
     return weights / weights.sum(dim=-1, keepdim=True)
 
 
+def heatmap_log_likelihood(heatmaps: torch.Tensor, targets: torch.Tensor) -> torch.Tensor:
+    """(B,) per sample, the soft targets' log-likelihood under the heatmaps' softmax, averaged over views (-CE(p))."""
+    b, v, h, w = heatmaps.shape
+    log_p = F.log_softmax(heatmaps.reshape(b, v, h * w).float(), dim=-1)
+    return (targets.reshape(b, v, h * w) * log_p).sum(dim=-1).mean(dim=1)
+
+
 def action_loss(out: PredictorOutput, targets: ActionTargets,
                 rotation_sigma_deg: float = 0.0) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
     """(L_action, {"translation", "rotation", "gripper"}) for a batch; the parts are detached.
@@ -83,9 +90,7 @@ def action_loss(out: PredictorOutput, targets: ActionTargets,
     ``rotation_sigma_deg`` > 0 scores the rotation against Gaussian targets over the bins (training
     only: validation keeps the one-hot CE(R), comparable across runs and with chance, 3 ln 72).
     """
-    b, v, h, w = out.heatmaps.shape
-    log_p = F.log_softmax(out.heatmaps.reshape(b, v, h * w).float(), dim=-1)
-    translation = -(targets.heatmaps.reshape(b, v, h * w) * log_p).sum(dim=-1).mean()
+    translation = -heatmap_log_likelihood(out.heatmaps, targets.heatmaps).mean()
     if out.depth is not None:
         translation = translation - (targets.depth * F.log_softmax(out.depth.float(), dim=-1)).sum(dim=-1).mean()
     logits = out.rotation.float().transpose(1, 2)  # (B, n_bins, 3)

@@ -62,6 +62,9 @@ class TrainConfig:
     augment: bool = True  # RVT scene augmentation of the predictor's batches
     eps_noise: float = 0.0  # std of Gaussian noise on the predictor's eps while training (standardised units)
     rotation_sigma_deg: float = 0.0  # std of the Gaussian rotation targets over each angle's bins (0: one-hot, RVT)
+    # Weight of the mode contrast (train/mode_contrast.py): the demonstrated point must be likelier
+    # under the trajectory's own eps than under the eps of the same object's other outcome (0: off, the paper).
+    mode_contrast: float = 0.0
     # Samplers whose trajectories the predictor learns keyposes from (empty: all, as the paper). The
     # selector always learns from every success: its clusters describe all the modes collection found.
     predictor_samplers: tuple[str, ...] = ()
@@ -77,6 +80,8 @@ class TrainConfig:
             raise ValueError(f"unknown phases {bad}; choose from {PHASES}")
         if self.rotation_sigma_deg < 0.0:
             raise ValueError(f"rotation_sigma_deg must be >= 0 (0: one-hot targets), got {self.rotation_sigma_deg}")
+        if self.mode_contrast < 0.0:
+            raise ValueError(f"mode_contrast must be >= 0 (0: off), got {self.mode_contrast}")
 
     def phase(self, name: str) -> PhaseConfig:
         return getattr(self, f"{name}_phase")

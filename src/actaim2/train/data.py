@@ -48,6 +48,9 @@ class TrainingData:
     valid: np.ndarray  # (N, 4) bool, keypose position inside the cube (the others have no heatmap target)
     z: np.ndarray  # (N, D) float32 task embeddings
     ids: list[str]
+    # (N,) str: each trajectory's outcome, "DoF index, direction" (data.storage.trajectory_outcome);
+    # None where the data came without its index (synthetic data), which only the mode contrast needs
+    outcomes: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -56,7 +59,8 @@ class TrainingData:
         """The given trajectories; views stay where they are (a lazy row selection, no copy)."""
         rows = np.asarray(rows)
         return TrainingData(_Rows(self.init_views, rows), _Rows(self.key_views, rows), self.keyposes[rows],
-                            self.gripper[rows], self.valid[rows], self.z[rows], [self.ids[i] for i in rows])
+                            self.gripper[rows], self.valid[rows], self.z[rows], [self.ids[i] for i in rows],
+                            None if self.outcomes is None else self.outcomes[rows])
 
     def keyframes(self) -> np.ndarray:
         """(M, 2) [trajectory, phase] of every keyframe with a valid target."""
@@ -183,8 +187,13 @@ def open_cache(root: str | Path, perception_config, splits: list[str]) -> Traini
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.train.checkpoint import perception_record
 
+    from actaim2.data.storage import DatasetReader, trajectory_outcome
+
     folder = cache_folder(root, splits, perception_record(perception_config)["digest"])
-    return load_cache(folder, CubePlacement.of(perception_config))
+    data = load_cache(folder, CubePlacement.of(perception_config))
+    entries = DatasetReader(root).by_id
+    data.outcomes = np.array([trajectory_outcome(entries[i]["dof_change"]) for i in data.ids])
+    return data
 
 
 def load_cache(folder: str | Path, placement) -> TrainingData:

@@ -31,7 +31,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from actaim2.data.storage import sampler_of
+from actaim2.data.storage import object_of, sampler_of
 from actaim2.models.predictor import ActionPredictor, PredictorConfig, proprio_features
 from actaim2.models.registry import build_selector
 from actaim2.models.selector_base import ModeSelector
@@ -40,11 +40,12 @@ from actaim2.models.gumbel import gumbel_temperature
 from actaim2.models.view_geometry import CubePlacement
 from actaim2.perception.ortho_views import CHANNELS
 from actaim2.train import checkpoint
-from actaim2.train.action_loss import action_loss, action_targets
+from actaim2.train.action_loss import action_loss, action_targets, heatmap_log_likelihood
 from actaim2.train.config import TrainConfig
 from actaim2.train.data import TrainingData
 from actaim2.train.distributed import DistContext, rank_slice, wrap
 from actaim2.train.elbo import selector_loss
+from actaim2.train.mode_contrast import contrast_partners, draw_partners, mode_contrast_loss
 
 STATE = "train_state"
 POLICY = "policy"
@@ -96,6 +97,7 @@ class Trainer:
         self.encoder_file: Path | None = None  # E of the task embeddings, shipped beside every model saved (callers set it)
         self.phase_index, self.step, self.optimizer_state = 0, 0, None
         self.temperature = gumbel_temperature(0.0)  # the CGMVAE's Gumbel-softmax temperature, annealed per epoch
+        self.partners = self._contrast_partners() if config.mode_contrast > 0.0 else None
         if init_from is not None:
             self._init_from(init_from)
         else:
@@ -110,16 +112,19 @@ class Trainer:
 
         A predictor that reads other inputs than the one there (an input ablation: other
         ``inputs`` or ``view``) is not taken from it: it is trained afresh, beside the selector.
-        A FiLM predictor continued from an ``add`` one takes all its weights; FiLM starts at the identity.
+        A FiLM or query predictor continued from an ``add`` one takes all its weights; the layers the
+        parent lacks start where they change nothing (``PredictorConfig.conditioning``).
         """
         policy = checkpoint.load_policy(stem, self.perception, self.device)
         same_inputs = policy.predictor is not None and (policy.predictor.config.inputs, policy.predictor.config.view) \
             == (self.predictor_config.inputs, self.predictor_config.view)
         if same_inputs:
             state = policy.predictor.state_dict()
-            if self.predictor.film is not None and policy.predictor.film is None:
-                # FiLM added to an "add" predictor: its zero-initialised layers keep the parent's outputs at the start
-                state = {**{k: v for k, v in self.predictor.state_dict().items() if k.startswith("film.")}, **state}
+            if policy.predictor.config.conditioning == "add":
+                # FiLM or query layers added to an "add" predictor start as initialised here, which
+                # keeps the parent's outputs; every other key must come from the parent
+                added = ("film.", "query.", "key.")
+                state = {**{k: v for k, v in self.predictor.state_dict().items() if k.startswith(added)}, **state}
             checkpoint.load_state(self.predictor, state, "predictor")
         if policy.selector is not None and type(policy.selector) is type(self.selector):
             checkpoint.load_state(self.selector, policy.selector.state_dict(), "selector")
@@ -134,6 +139,15 @@ class Trainer:
         self.lineage["init_from"] = {"path": str(stem), "weights_sha256": policy.meta.get("weights_sha256"),
                                      "phases_done": parent.get("phases_done"), "predictor_loaded": same_inputs,
                                      "init_from": parent.get("init_from")}  # the chain back to the first run
+
+    def _contrast_partners(self) -> list[np.ndarray]:
+        """Per training trajectory, the same object's trajectories of another outcome (train/mode_contrast.py)."""
+        if self.train.outcomes is None:
+            raise ValueError("mode_contrast needs each trajectory's outcome: open the data with train.data.open_cache")
+        partners = contrast_partners([object_of(i) for i in self.train.ids], self.train.outcomes)
+        if not any(len(p) for p in partners):
+            raise ValueError("mode_contrast: no object's training trajectories reached two outcomes")
+        return partners
 
     def _tensorboard(self):
         try:
@@ -324,11 +338,22 @@ class Trainer:
                 metrics.update({f"selector_{k}": v for k, v in sel_metrics.items()})
             views, keypose = self.augment(batch["views"], batch["keypose"], rng)
             point = self.placement.to_cube(keypose[:, :3]) if rng is not None else None  # teacher forcing: training only
-            out = predictor(views, self.perturb_eps(eps_in, rng), proprio_features(batch["gripper"], batch["phase"]), point)
-            action, parts = action_loss(out, action_targets(keypose, self.placement, views.shape[-1],
-                                                            view=self.predictor_config.view_index),
+            proprio = proprio_features(batch["gripper"], batch["phase"])
+            out = predictor(views, self.perturb_eps(eps_in, rng), proprio, point)
+            targets = action_targets(keypose, self.placement, views.shape[-1], view=self.predictor_config.view_index)
+            action, parts = action_loss(out, targets,
                                         rotation_sigma_deg=self.config.rotation_sigma_deg if rng is not None else 0.0)
             metrics.update({"action": action.item(), **{k: float(v) for k, v in parts.items()}})
+            if self.partners is not None and phase == "predictor" and rng is not None:
+                positions, drawn = draw_partners(self.partners, items[:, 0], rng)
+                if len(positions):
+                    k = torch.from_numpy(positions).to(self.device)
+                    eps_other = self.selector.standardise(torch.from_numpy(self.train.z[drawn]).to(self.device))
+                    other = predictor(views[k], self.perturb_eps(eps_other, rng), proprio[k], point[k])
+                    contrast = mode_contrast_loss(heatmap_log_likelihood(out.heatmaps[k], targets.heatmaps[k]),
+                                                  heatmap_log_likelihood(other.heatmaps, targets.heatmaps[k]))
+                    action = action + self.config.mode_contrast * contrast
+                    metrics["mode_contrast"] = contrast.item()
             return action, elbo, metrics
 
     def perturb_eps(self, eps: torch.Tensor, rng: np.random.Generator | None) -> torch.Tensor:

@@ -36,9 +36,9 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.train.curves import plot_curves, read_history
     from actaim2.train.data import dataset_digest, ensure_cache, open_cache
     from actaim2.train.distributed import choose_device
-    from actaim2.data.storage import DatasetReader
+    from actaim2.data.storage import object_of
     from actaim2.train.validation import action_figures, markdown, mode_chain_figures, outcome_figures, predict_keyframes, \
-        selector_figures, trajectory_outcome
+        selector_figures
 
     stem = args.checkpoint or args.run / "policy"
     args.run.mkdir(parents=True, exist_ok=True)
@@ -57,9 +57,7 @@ def main(args: argparse.Namespace) -> int:
     predictions = predict_keyframes(policy.selector, policy.predictor, data, CubePlacement.of(perception), device)
     actions = action_figures(predictions)
     selector = selector_figures(policy.selector, data, device)
-    entries = DatasetReader(args.data).by_id
-    objects = [entries[t]["object_id"] for t in data.ids]
-    outcomes = [trajectory_outcome(entries[t]["dof_change"]) for t in data.ids]
+    objects, outcomes = [object_of(t) for t in data.ids], list(data.outcomes)
     follow = outcome_figures(predictions, objects, outcomes)
     chain = mode_chain_figures(policy.selector, data, objects, outcomes, device)
     digest = policy.meta.get("weights_sha256")

@@ -137,13 +137,6 @@ class OutcomeFigures:
     demonstrated_point: float  # the first rate for the demonstrated point itself: what a perfect predictor scores
 
 
-def trajectory_outcome(dof_change: Sequence[float]) -> str:
-    """"DoF index, direction" of the DoF that moved most (fractions of range), e.g. "1-"."""
-    change = np.asarray(dof_change, dtype=float)
-    k = int(np.argmax(np.abs(change)))
-    return f"{k}{'+' if change[k] > 0 else '-'}"
-
-
 def outcome_figures(predictions: KeyframePredictions, objects: Sequence[str],
                     outcomes: Sequence[str]) -> dict[str, OutcomeFigures]:
     """Per keypose phase: does the point predicted from the true eps follow the trajectory's outcome?
