@@ -32,8 +32,8 @@ import json
 import os
 import tarfile
 from dataclasses import dataclass
-from typing import Sequence
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 from PIL import Image

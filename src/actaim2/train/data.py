@@ -183,11 +183,10 @@ def ensure_cache(root: str | Path, perception_config, splits: list[str], show_pr
 
 
 def open_cache(root: str | Path, perception_config, splits: list[str]) -> TrainingData:
-    """The cached views of ``splits`` (built by :func:`ensure_cache`), memory-mapped."""
+    """The cached views of ``splits`` (built by :func:`ensure_cache`), memory-mapped, with each trajectory's outcome."""
+    from actaim2.data.storage import DatasetReader, trajectory_outcome
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.train.checkpoint import perception_record
-
-    from actaim2.data.storage import DatasetReader, trajectory_outcome
 
     folder = cache_folder(root, splits, perception_record(perception_config)["digest"])
     data = load_cache(folder, CubePlacement.of(perception_config))

@@ -344,7 +344,7 @@ class Trainer:
             action, parts = action_loss(out, targets,
                                         rotation_sigma_deg=self.config.rotation_sigma_deg if rng is not None else 0.0)
             metrics.update({"action": action.item(), **{k: float(v) for k, v in parts.items()}})
-            if self.partners is not None and phase == "predictor" and rng is not None:
+            if self.partners is not None and phase == "predictor" and rng is not None:  # a training batch of self.train
                 positions, drawn = draw_partners(self.partners, items[:, 0], rng)
                 if len(positions):
                     k = torch.from_numpy(positions).to(self.device)
