@@ -49,7 +49,8 @@ class TrainingData:
     z: np.ndarray  # (N, D) float32 task embeddings
     ids: list[str]
     # (N,) str: each trajectory's outcome, "DoF index, direction" (data.storage.trajectory_outcome);
-    # None where the data came without its index (synthetic data), which only the mode contrast needs
+    # None where a trajectory has no DoF measurement (demonstrations from bags) or the data no index
+    # (synthetic data); the mode contrast and validate's outcome figures need them
     outcomes: np.ndarray | None = None
 
     def __len__(self) -> int:
@@ -183,7 +184,8 @@ def ensure_cache(root: str | Path, perception_config, splits: list[str], show_pr
 
 
 def open_cache(root: str | Path, perception_config, splits: list[str]) -> TrainingData:
-    """The cached views of ``splits`` (built by :func:`ensure_cache`), memory-mapped, with each trajectory's outcome."""
+    """The cached views of ``splits`` (built by :func:`ensure_cache`), memory-mapped, with each trajectory's
+    outcome when every one has a DoF measurement."""
     from actaim2.data.storage import DatasetReader, trajectory_outcome
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.train.checkpoint import perception_record
@@ -191,7 +193,9 @@ def open_cache(root: str | Path, perception_config, splits: list[str]) -> Traini
     folder = cache_folder(root, splits, perception_record(perception_config)["digest"])
     data = load_cache(folder, CubePlacement.of(perception_config))
     entries = DatasetReader(root).by_id
-    data.outcomes = np.array([trajectory_outcome(entries[i]["dof_change"]) for i in data.ids])
+    changes = [entries[i].get("dof_change") for i in data.ids]
+    if all(changes):  # demonstrations from bags measured no DoF: they have no outcome
+        data.outcomes = np.array([trajectory_outcome(c) for c in changes])
     return data
 
 

@@ -54,6 +54,10 @@ def main(args: argparse.Namespace) -> int:
         return 1
     ensure_cache(args.data, perception, [args.split], not args.no_progress, allow_held_out=True)  # measuring, not training
     data = open_cache(args.data, perception, [args.split])
+    if data.outcomes is None:
+        print(f"actaim2 validate: {args.data} split {args.split} has trajectories without a DoF measurement "
+              "(dof_change), so no outcome to follow: validate a simulated collection")
+        return 1
     predictions = predict_keyframes(policy.selector, policy.predictor, data, CubePlacement.of(perception), device)
     actions = action_figures(predictions)
     selector = selector_figures(policy.selector, data, device)
