@@ -143,7 +143,8 @@ class Trainer:
     def _contrast_partners(self) -> list[np.ndarray]:
         """Per training trajectory, the same object's trajectories of another outcome (train/mode_contrast.py)."""
         if self.train.outcomes is None:
-            raise ValueError("mode_contrast needs each trajectory's outcome: open the data with train.data.open_cache")
+            raise ValueError("mode_contrast needs each trajectory's outcome: a simulated collection opened with "
+                             "train.data.open_cache (demonstrations from bags measured no DoF)")
         partners = contrast_partners([object_of(i) for i in self.train.ids], self.train.outcomes)
         if not any(len(p) for p in partners):
             raise ValueError("mode_contrast: no object's training trajectories reached two outcomes")
