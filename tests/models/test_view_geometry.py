@@ -13,6 +13,7 @@ from actaim2.models.view_geometry import (
     decode_points,
     heatmap_targets,
     score_cells,
+    smoothed_log_probs,
 )
 from actaim2.perception.ortho_views import CHANNELS, VIEWS, project, render_views
 
@@ -77,11 +78,12 @@ def _heatmap_sets(n: int, seed: int) -> torch.Tensor:
     return logits
 
 
-def test_coarse_to_fine_decode_matches_the_dense_argmax_on_100_heatmap_sets():
+@pytest.mark.parametrize("sigma_px", [0.0, 3.0])
+def test_coarse_to_fine_decode_matches_the_dense_argmax_on_100_heatmap_sets(sigma_px):
     logits = _heatmap_sets(100, 3)
-    fast, dense = decode_cells(logits), decode_cells_dense(logits)
-    fast_score = score_cells(logits, fast[:, None])[:, 0]
-    dense_score = score_cells(logits, dense[:, None])[:, 0]
+    fast, dense = decode_cells(logits, sigma_px=sigma_px), decode_cells_dense(logits, sigma_px=sigma_px)
+    fast_score = score_cells(logits, fast[:, None], sigma_px)[:, 0]
+    dense_score = score_cells(logits, dense[:, None], sigma_px)[:, 0]
     torch.testing.assert_close(fast_score, dense_score, rtol=0, atol=1e-5)
     tied = torch.isclose(fast_score, dense_score, rtol=0, atol=1e-5) & (fast != dense).any(dim=1)
     assert ((fast == dense).all(dim=1) | tied).all()
@@ -96,3 +98,25 @@ def test_decode_rejects_a_coarse_grid_that_does_not_divide_the_views():
 def test_cell_centres_tile_the_cube():
     centres = cell_centres(torch.tensor([[0, 0, 0], [R - 1, R - 1, R - 1]]), R)
     torch.testing.assert_close(centres, torch.tensor([[-1 + 1 / R] * 3, [1 - 1 / R] * 3]))
+
+
+def test_smoothed_log_probs_without_blur_is_the_log_softmax_and_with_blur_a_distribution():
+    logits = _heatmap_sets(6, 4)
+    plain = smoothed_log_probs(logits)
+    torch.testing.assert_close(plain, torch.log_softmax(logits.flatten(2), dim=-1).flatten(1))
+    blurred = smoothed_log_probs(logits, 3.0).view(6, len(VIEWS), -1).exp()
+    assert blurred.sum(dim=-1).sub(1).abs().max() < 0.05  # the repeated border keeps the mass up to the edge's share
+    assert blurred.amax(dim=-1).le(plain.view(6, len(VIEWS), -1).exp().amax(dim=-1) + 1e-6).all()  # a blur lowers peaks
+
+
+def test_smoothed_decode_finds_the_spread_part_not_a_single_speckle():
+    """Most of the mass spread over one region and a single likeliest pixel elsewhere (a speckle):
+    the plain argmax decodes the speckle, the blurred search the region, as decode_points says."""
+    part = torch.tensor([[0.3, -0.2, 0.1]])
+    speckle = torch.tensor([[-0.5, 0.4, -0.3]])
+    spread = heatmap_targets(part, R, 6.0)  # the region: a wide Gaussian, peak ~0.4 % of a view's mass
+    spike = heatmap_targets(speckle, R, 0.3)  # one pixel per view
+    logits = (0.9 * spread + 0.1 * spike).log()
+    cell = 2.0 / R
+    assert (decode_points(logits) - speckle).abs().max() <= cell
+    assert (decode_points(logits, 3.0) - part).abs().max() <= 2 * cell

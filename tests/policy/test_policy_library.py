@@ -186,3 +186,31 @@ def test_backoff_grows_to_its_cap_and_never_passes_the_deadline():
     assert len(calls) == 1 + len(Backoff().delays(0.3))
     assert wait_until(lambda: calls.append(1) or len(calls) > 6, 10.0, sleep=lambda s: False)
     assert not wait_until(lambda: False, 10.0, stop=lambda: True)
+
+
+def test_a_checkpoint_decoding_blurred_heatmaps_is_served_so_and_a_bad_blur_refused(tiny_checkpoint, tmp_path):
+    """``decode_sigma_px`` in the checkpoint's JSON is how /predict_keypose decodes its heatmaps."""
+    import torch
+
+    from actaim2.models.predictor import decode_action, proprio_features
+
+    meta = json.loads(tiny_checkpoint.stem.with_suffix(".json").read_text())
+    shutil.copy(tiny_checkpoint.stem.with_suffix(".safetensors"), tmp_path / "policy.safetensors")
+    meta["predictor_config"]["decode_sigma_px"] = 2.0
+    (tmp_path / "policy.json").write_text(json.dumps(meta))
+    blurred = PolicyModel.load(tmp_path / "policy", tiny_checkpoint.config, "cpu")
+    views = scene(tiny_checkpoint, 1)
+    eps = blurred.sample_mode(views, -1, 3).eps
+    batch = torch.from_numpy(np.ascontiguousarray(views.data))[None]
+    for phase, target in enumerate(TARGETS):
+        served = blurred.predict_keypose(views, eps, phase, phase == 3).keypose.position
+        proprio = proprio_features(torch.tensor([phase == 3]), torch.tensor([phase]))
+        with torch.no_grad():
+            out = blurred.predictor(batch, torch.from_numpy(eps)[None], proprio)
+        expected = decode_action(out, blurred.placement, None, 2.0).position[0].double().numpy()
+        np.testing.assert_allclose(served, expected, atol=1e-6)
+        assert np.linalg.norm(served - target[:3]) < 0.04, (phase, served)
+    meta["predictor_config"]["decode_sigma_px"] = 100.0
+    (tmp_path / "policy.json").write_text(json.dumps(meta))
+    with pytest.raises(PolicyLoadError, match="decode_sigma_px must lie in"):
+        PolicyModel.load(tmp_path / "policy", tiny_checkpoint.config, "cpu")

@@ -7,6 +7,7 @@ YAML configuration (a few steps per phase), so it checks the plumbing, not learn
 from __future__ import annotations
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -136,3 +137,18 @@ def test_baseline_selector_reuses_the_goal_rvt_predictor(dataset, tmp_path):
     goal = load_policy(tmp_path / "goal" / "goal_rvt", record)
     # the z statistics came with the predictor, so eps means the same thing to both
     assert (cvae.selector.z_mean == goal.selector.z_mean).all()
+
+
+def test_validate_refuses_data_without_dof_measurements(dataset, tmp_path, capsys):
+    """Bag demonstrations store no DoF change, so no outcome to follow: validate says so and exits 1."""
+    out = tmp_path / "run"
+    assert cli_main(["train", "--data", str(dataset), "--out", str(out), "--config", _config(tmp_path), "--no-progress"]) == 0
+    bag_like = tmp_path / "bag_like"
+    shutil.copytree(dataset, bag_like, ignore=shutil.ignore_patterns("cache"))
+    entries = [json.loads(line) for line in (bag_like / "index.jsonl").read_text().splitlines()]
+    entries[0]["dof_change"] = []  # what bag2dataset's empty ObjectState stores
+    (bag_like / "index.jsonl").write_text("".join(json.dumps(e) + "\n" for e in entries))
+    capsys.readouterr()
+    assert cli_main(["validate", str(out), "--data", str(bag_like), "--split", "train_seen", "--no-progress"]) == 1
+    assert "without a DoF measurement" in capsys.readouterr().out
+    assert not (out / "validation.md").exists()

@@ -133,7 +133,7 @@ def bench_predictor(
 
     def forward_decode():
         with torch.inference_mode(), autocast:
-            decode_action(model(views, eps, proprio), placement, config.view_index)
+            decode_action(model(views, eps, proprio), placement, config.view_index, config.decode_sigma_px)
 
     wall, cpu = time_calls(forward_decode, repeats, warmup=5, device=dev)
     target = TARGET_FORWARD_P50_MS if dev.type == "cpu" else None  # the targets are for 2 CPU cores

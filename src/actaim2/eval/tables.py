@@ -1,6 +1,7 @@
 """Markdown tables of an evaluation's records: the paper's Table 1 (SSR), Table 2 (Mode SSR), the
 appendix table of 3rd and 4th modes, whether the groups select outcomes at all (a permutation
-test, ``mode_dependence.py``), the acceptance checks of issue 13, and where samples stopped
+test, ``mode_dependence.py``), the SSR of each cluster (whether some clusters draw eps the
+predictor cannot act on), the acceptance checks of issue 13, and where samples stopped
 (which phase the planner refused and why, and the SSR of the samples that ran all four phases:
 whether a row loses to infeasible keyposes or to keyposes that run and move nothing).
 
@@ -141,6 +142,33 @@ def dependence_table(records: Sequence[dict], methods: list[str]) -> list[str]:
     return lines
 
 
+def cluster_table(records: Sequence[dict], methods: list[str]) -> list[str]:
+    """Per method asked for its K clusters (codes) and per split: the SSR of each cluster's samples and,
+    after ``/``, the share of them that ran all four phases.
+
+    Why: SSR draws the clusters uniformly, so a cluster whose eps the predictor cannot act on (one
+    the selector's posterior never assigns a trajectory to, say) costs the row 1/K of its samples.
+    """
+    rows = [r for r in records if METHODS[r["method"]].grouping == "cluster" and r.get("group", -1) >= 0]
+    if not rows:
+        return ["(no row sampled by cluster)"]
+    k = 1 + max(r["group"] for r in rows)
+    lines = ["| method | split | " + " | ".join(f"cluster {c}" for c in range(k)) + " | samples |", "|---" * (k + 3) + "|"]
+    for m in methods:
+        for split in _splits(records):
+            mine = [r for r in rows if r["method"] == m and r["split"] == split]
+            if not mine:
+                continue
+            cells = []
+            for c in range(k):
+                group = [r for r in mine if r["group"] == c]
+                ran = sum(r["phases_executed"] == len(PHASE_NAMES) for r in group)
+                cells.append(f"{Rate(sum(bool(r['success']) for r in group), len(group)).cell()} / "
+                             f"{100 * ran / len(group):.0f} %" if group else "-")
+            lines.append(f"| {METHODS[m].title} | {SPLIT_TITLES[split]} | " + " | ".join(cells) + f" | {len(mine)} |")
+    return lines
+
+
 def _above(a: Rate | None, b: Rate | None) -> str:
     if a is None or b is None or not a.trials or not b.trials:
         return "not measured"
@@ -222,6 +250,9 @@ def report(records: Sequence[dict], methods: list[str], header: list[str]) -> st
               f"outcome (mode of a success, or failed); p: permutation test, groups shuffled within each object "
               f"({PERMUTATIONS} permutations).", ""]
     lines += dependence_table(records, done)
+    lines += ["", "## SSR per cluster", "",
+              "SSR % [95 % Wilson] of each cluster's (code's) samples / the share of them that ran all four phases.", ""]
+    lines += cluster_table(records, done)
     lines += ["", "## Acceptance checks (issue 13)", ""] + acceptance_table(records)
     lines += ["", "## Where samples stopped (all splits)", "",
               "A keypose the planner refuses ends its sample (docs/evaluation.md); the rest ran all four phases."]

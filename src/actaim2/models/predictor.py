@@ -65,7 +65,7 @@ from torch import nn
 
 from actaim2.data.trajectory import PHASES
 from actaim2.models.rotation_bins import ROTATION_BINS, bins_to_quat
-from actaim2.models.view_geometry import CubePlacement, decode_points, decode_points_in_view, project_cube
+from actaim2.models.view_geometry import CubePlacement, decode_points, decode_points_in_view, project_cube, smoothed_log_probs
 from actaim2.perception.ortho_views import CHANNELS, DEFAULT_RESOLUTION, VIEWS
 
 PROPRIO_DIM = 1 + len(PHASES)  # gripper closed + phase one-hot
@@ -114,6 +114,10 @@ class PredictorConfig:
     # scale and shift before every block) or "query" (also a per-patch heatmap score, the product
     # of the conditioning and the patch's features).
     conditioning: str = "add"
+    # Gaussian blur (pixels) of each view's probabilities before the point is decoded (view_geometry's
+    # decode_points says why); 0: RVT's plain argmax (checkpoints saved before the field existed).
+    # A serving choice, not a trained one: the same weights decode either way.
+    decode_sigma_px: float = 0.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "channel_names", tuple(self.channel_names))
@@ -135,6 +139,8 @@ class PredictorConfig:
             raise ValueError(f"rotation_pooling must be one of {list(ROTATION_POOLING)}, got {self.rotation_pooling!r}")
         if self.conditioning not in CONDITIONING:
             raise ValueError(f"conditioning must be one of {list(CONDITIONING)}, got {self.conditioning!r}")
+        if not 0.0 <= self.decode_sigma_px <= self.image_size / 8:
+            raise ValueError(f"decode_sigma_px must lie in [0, {self.image_size / 8:g}] px, got {self.decode_sigma_px}")
 
     @property
     def read_channels(self) -> tuple[int, ...]:
@@ -308,9 +314,9 @@ class ActionPredictor(nn.Module):
                 uv = project_cube(point, c.image_size)  # (B, 5, 2): every rendered view
                 uv = uv if c.view_index is None else uv[:, c.view_index : c.view_index + 1]
             elif c.view_index is None:  # the decoded point seen from each view, as decode_action finds it
-                uv = project_cube(decode_points(heatmaps), c.image_size)
+                uv = project_cube(decode_points(heatmaps, c.decode_sigma_px), c.image_size)
             else:  # one view: the point's pixel is the heatmap's most likely one, whatever its depth
-                pixel = heatmaps.reshape(b, v, -1).argmax(dim=-1)
+                pixel = smoothed_log_probs(heatmaps, c.decode_sigma_px).argmax(dim=-1, keepdim=True)
                 uv = torch.stack([pixel % c.image_size, pixel // c.image_size], dim=-1).float() + 0.5
             cell = (uv / c.patch).floor().long().clamp_(0, self.grid - 1)
             token = cell[..., 1] * self.grid + cell[..., 0]  # (B, V): patches are laid out row-major
@@ -321,15 +327,18 @@ class ActionPredictor(nn.Module):
 
 
 @torch.no_grad()
-def decode_action(out: PredictorOutput, placement: CubePlacement, view: int | None = None) -> DecodedAction:
+def decode_action(out: PredictorOutput, placement: CubePlacement, view: int | None = None,
+                  sigma_px: float = 0.0) -> DecodedAction:
     """The keypose each batch row predicts: position (world), quaternion (x, y, z, w), gripper.
 
     ``view``: the predictor's ``config.view_index`` (None: all five views). A single-view
     output's point is its heatmap's most likely pixel at its most likely depth cell.
+    ``sigma_px``: the predictor's ``config.decode_sigma_px`` (the heatmaps' blur before decoding).
     """
     if (view is None) != (out.depth is None):
         raise ValueError("a single-view output needs its view index (config.view_index), a five-view one none")
-    cube = decode_points(out.heatmaps) if view is None else decode_points_in_view(out.heatmaps[:, 0], out.depth, view)
+    cube = decode_points(out.heatmaps, sigma_px) if view is None \
+        else decode_points_in_view(out.heatmaps[:, 0], out.depth, view, sigma_px)
     position = placement.to_world(cube)
     bins = out.rotation.argmax(dim=-1).cpu().numpy()
     quat = torch.from_numpy(bins_to_quat(bins, out.rotation.shape[-1]).astype(np.float32)).to(position.device)

@@ -145,7 +145,8 @@ class PolicyModel:
         proprio = proprio_features(torch.tensor([bool(gripper_closed)], device=self.device),
                                    torch.tensor([phase], device=self.device))
         out = self.predictor(self._batch(views), torch.from_numpy(eps)[None].to(self.device), proprio)
-        action = decode_action(out, self.placement, self.predictor.config.view_index)
+        action = decode_action(out, self.placement, self.predictor.config.view_index,
+                               self.predictor.config.decode_sigma_px)
         heat = torch.softmax(out.heatmaps[0].flatten(1).float(), dim=-1).amax(dim=-1).mean()
         if out.depth is not None:
             heat = heat * torch.softmax(out.depth[0].float(), dim=-1).amax()

@@ -103,7 +103,8 @@ def predict_keyframes(selector: ModeSelector, predictor: ActionPredictor, data: 
         eps = _eps(selector, batch["init_views"], batch["z"])
         truth.append(batch["keypose"].cpu().numpy())
         for kind in EMBEDDINGS:
-            decoded[kind].append(decode_action(predictor(batch["views"], eps[kind], proprio), placement, predictor.config.view_index))
+            decoded[kind].append(decode_action(predictor(batch["views"], eps[kind], proprio), placement,
+                                              predictor.config.view_index, predictor.config.decode_sigma_px))
 
     def join(kind: str, field: str) -> np.ndarray:
         return np.concatenate([getattr(a, field).cpu().numpy() for a in decoded[kind]])
