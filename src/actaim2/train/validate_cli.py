@@ -30,13 +30,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    from actaim2.data.storage import object_of
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.perception.config import load_perception_config
     from actaim2.train import checkpoint
     from actaim2.train.curves import plot_curves, read_history
     from actaim2.train.data import dataset_digest, ensure_cache, open_cache
     from actaim2.train.distributed import choose_device
-    from actaim2.data.storage import object_of
     from actaim2.train.validation import action_figures, markdown, mode_chain_figures, outcome_figures, predict_keyframes, \
         selector_figures
 
@@ -61,7 +61,7 @@ def main(args: argparse.Namespace) -> int:
     predictions = predict_keyframes(policy.selector, policy.predictor, data, CubePlacement.of(perception), device)
     actions = action_figures(predictions)
     selector = selector_figures(policy.selector, data, device)
-    objects, outcomes = [object_of(t) for t in data.ids], list(data.outcomes)
+    objects, outcomes = [object_of(t) for t in data.ids], data.outcomes.tolist()
     follow = outcome_figures(predictions, objects, outcomes)
     chain = mode_chain_figures(policy.selector, data, objects, outcomes, device)
     digest = policy.meta.get("weights_sha256")
