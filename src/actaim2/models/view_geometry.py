@@ -32,8 +32,8 @@ pixel centres in every view, so a candidate's score is an exact sum of five pixe
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 import math
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
