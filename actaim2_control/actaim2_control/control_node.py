@@ -86,6 +86,9 @@ PARAMETERS = {
     "via_speed_fraction": (_PLAN.via_speed_fraction, "speed at the pre-grasp via point, fraction of the line's top speed"),
     "sample_period": (_PLAN.sample_period, "s between the trajectory points sent to the controller"),
     "ik_restarts": (IKOptions().restarts, "random IK restarts after the attempt seeded from the current joints"),
+    "hand_half_turn": (_PLAN.hand_half_turn, "a keypose and its half turn about the approach axis are one grasp of a "
+                                             "two-finger hand: plan whichever the arm can take (INIT as given first, "
+                                             "REACH and MANIPULATE as the hand already is; MANIPULATE never turns)"),
 }
 
 
@@ -106,6 +109,7 @@ class ControlNode(Node):
             via_speed_fraction=float(p["via_speed_fraction"]),
             sample_period=float(p["sample_period"]),
             cloud_clearance=float(p["cloud_clearance"]),
+            hand_half_turn=bool(p["hand_half_turn"]),
         )
         self._planner = KeyposePlanner(robot, checker, solver, options)
         group = ReentrantCallbackGroup()

@@ -104,6 +104,17 @@ def test_other_checkpoint_refused(checkpoints, tmp_path) -> None:
     assert result.returncode == 2 and "actaim2 results made with " + "0" * 64 in result.stderr
 
 
+def test_other_planner_refused(checkpoints, tmp_path) -> None:
+    """Results planned with and without the hand's half turn never mix either."""
+    out = tmp_path / "planner"
+    out.mkdir()
+    (out / "run.json").write_text(json.dumps({"eval_set_version": 1, "robot": "panda", "rig": "ring5",
+                                              "hand_half_turn": True, "methods": {}}))
+    result = subprocess.run(evaluate("--smoke", "--out", out, "--checkpoint", checkpoints["cgmvae"], "--methods", "actaim2"),
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 2 and "hand_half_turn True, this run has False" in result.stderr, result.stderr
+
+
 @pytest.mark.timeout(900)
 def test_ablation_row_refuses_a_checkpoint_that_is_not_its_ablation(checkpoints, tmp_path) -> None:
     """--ablation-depth given a full policy: refused before any sample, saying why (each row's rule: test_ablation_rows.py)."""

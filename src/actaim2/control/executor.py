@@ -67,6 +67,7 @@ class KeyposeRunner:
                                        self._start_state(), velocity_scaling, self.rng)
         except PlanningError as exc:
             return self._outcome(T_goal, False, str(exc), exc.reason)
+        T_goal = motion.T_goal  # the pose planned: with the planner's hand_half_turn, possibly the half-turned one
         report(motion.phase, 0.0)
         if motion.gripper_closed is not None and motion.gripper_closed != self._gripper_closed:
             step = self.executor.set_gripper(motion.gripper_closed)

@@ -10,6 +10,12 @@ The four phases of the primitive (DESIGN.md) plan differently:
     follows, chained with a chosen speed along the line so the arm does not stop there.
   * GRASP: no arm motion; the gripper closes.
   * MANIPULATE: a straight line from the current tcp pose to p2 (orientation kept).
+With ``hand_half_turn``, a pose and its half turn about the approach axis count as one goal (a
+two-finger hand grasps the same either way, and the policy's rotation targets keep one of the
+pair, while data collection executed both): INIT plans the pose as given and its half turn if that
+is refused; REACH and MANIPULATE plan the one nearer the tcp's current orientation (so they follow
+an INIT executed half-turned), REACH the other if that is refused. MANIPULATE never turns: the
+hand holds the part.
 Straight lines start from rest (the arm has settled after the previous keypose).
 Every sampled configuration is checked for self- and environment collisions; the fused
 cloud is used only while the scene is static (INIT, REACH): during MANIPULATE the object
@@ -40,6 +46,7 @@ class PlannerOptions:
     via_speed_fraction: float = 0.5  # speed at the pre-grasp via point, fraction of the line's top speed
     sample_period: float = 0.02  # s between trajectory points sent to the controller
     cloud_clearance: float = 0.12  # m: cloud points this close to p1 are the grasped part, not obstacles
+    hand_half_turn: bool = False  # plan T or T Rz(180), whichever is accepted (order: module docstring)
 
 
 @dataclass
@@ -83,10 +90,37 @@ class KeyposePlanner:
         """The motion executing keypose (phase, T_goal, gripper_closed) from the arm state ``start``."""
         if phase not in (INIT, REACH, GRASP, MANIPULATE):
             raise PlanningError("invalid", f"unknown phase {phase}: expected 0..3 (INIT, REACH, GRASP, MANIPULATE)")
-        limits = Limits.of(self.robot, velocity_scaling)
         T_goal = np.asarray(T_goal, dtype=float)
         if phase == GRASP:
             return Motion(phase, T_goal, gripper_closed, None)
+        if not self.options.hand_half_turn:
+            return self._plan_pose(phase, T_goal, gripper_closed, start, velocity_scaling, rng)
+        first, second = self._half_turn_order(T_goal, start.position, phase)
+        if phase == MANIPULATE:  # the hand holds the part: turning it half a turn on the way is no option
+            return self._plan_pose(phase, first, gripper_closed, start, velocity_scaling, rng)
+        try:
+            return self._plan_pose(phase, first, gripper_closed, start, velocity_scaling, rng)
+        except PlanningError as refused:
+            try:
+                return self._plan_pose(phase, second, gripper_closed, start, velocity_scaling, rng)
+            except PlanningError:
+                raise refused from None  # the nearer pose's reason: what a user asked for, nearly
+
+    def _half_turn_order(self, T_goal: np.ndarray, angles: np.ndarray, phase: int) -> tuple[np.ndarray, np.ndarray]:
+        """(T_goal, T_goal Rz(180)) in the order to try: as given at INIT, else the one whose orientation is
+        nearer the tcp's at ``angles`` first."""
+        turned = T_goal.copy()
+        turned[:3, :2] *= -1.0  # Rz(180): tcp x and y reversed, approach axis and position kept
+        if phase == INIT:
+            return T_goal, turned
+        R_now = self.robot.fk(angles)[:3, :3]
+        distance = [Rotation.from_matrix(R_now.T @ T[:3, :3]).magnitude() for T in (T_goal, turned)]
+        return (T_goal, turned) if distance[0] <= distance[1] else (turned, T_goal)
+
+    def _plan_pose(self, phase: int, T_goal: np.ndarray, gripper_closed: bool, start: State, velocity_scaling: float,
+                   rng: np.random.Generator | None) -> Motion:
+        """The motion to exactly ``T_goal`` (INIT, REACH or MANIPULATE)."""
+        limits = Limits.of(self.robot, velocity_scaling)
         use_cloud = phase != MANIPULATE and self._cloud is not None
         self.checker.set_cloud(points_away_from(self._cloud, T_goal[:3, 3], self.options.cloud_clearance) if use_cloud else None)
         try:

@@ -6,7 +6,7 @@ cut short by a kill is dropped when the file is opened again. Tasks that raised 
 (they are retried by the next run).
 
 ``<out>/run.json`` records what the results were made with: the evaluation set version, the
-robot and rig, and per method its checkpoint's weights digest. Resuming with another
+robot and rig, the planner's ``hand_half_turn``, and per method its checkpoint's weights digest. Resuming with another
 checkpoint for a method already in the file is refused, so numbers of two models never mix.
 """
 from __future__ import annotations
@@ -24,15 +24,16 @@ class RunMismatchError(ValueError):
 
 
 def check_run(out: Path, run: dict) -> dict:
-    """Merge ``run`` into ``out/run.json``; refuse a different evaluation set, robot, rig or checkpoint."""
+    """Merge ``run`` into ``out/run.json``; refuse a different evaluation set, robot, rig, planner or checkpoint."""
     path = out / RUN_FILE
     if not path.exists():
         out.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(run, indent=2, sort_keys=True))
         return run
     old = json.loads(path.read_text())
-    for field in ("eval_set_version", "robot", "rig"):
-        if old.get(field) != run.get(field):
+    defaults = {"hand_half_turn": False}  # a run.json written before the planner option existed
+    for field in ("eval_set_version", "robot", "rig", "hand_half_turn"):
+        if old.get(field, defaults.get(field)) != run.get(field, defaults.get(field)):
             raise RunMismatchError(f"{out} holds results of {field} {old.get(field)!r}, this run has {run.get(field)!r}: "
                                    f"use another --out")
     for method, identity in run["methods"].items():

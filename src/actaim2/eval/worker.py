@@ -30,6 +30,7 @@ class WorkerSetup:
     velocity_scaling: float = _COLLECT_DEFAULTS["velocity_scaling"]
     max_samples: int = _COLLECT_DEFAULTS["max_samples"]
     device: str = "cpu"
+    hand_half_turn: bool = False  # PlannerOptions.hand_half_turn for every row's keyposes
 
 
 class EvalWorker:
@@ -39,7 +40,7 @@ class EvalWorker:
         from actaim2.control.collision import CollisionChecker
         from actaim2.control.ik import IKOptions, IKSolver
         from actaim2.control.model import RobotModel
-        from actaim2.control.planner import KeyposePlanner
+        from actaim2.control.planner import KeyposePlanner, PlannerOptions
         from actaim2.data.object_cloud import CloudConfig
         from actaim2.rollout.sim_executor import SimEnvExecutor
         from actaim2.sim.env import SimEnv
@@ -51,7 +52,7 @@ class EvalWorker:
         self.env = SimEnv(setup.robot, cameras=setup.rig, render_path=setup.render_path, randomisation=randomisation)
         robot = RobotModel(self.env.spec)
         checker = CollisionChecker(robot)
-        self.planner = KeyposePlanner(robot, checker, IKSolver(robot, checker))
+        self.planner = KeyposePlanner(robot, checker, IKSolver(robot, checker), PlannerOptions(hand_half_turn=setup.hand_half_turn))
         self.screen_ik = IKSolver(robot, checker, IKOptions(restarts=PRECHECK_IK_RESTARTS))
         self.executor = SimEnvExecutor(self.env)
         self.cloud_config = CloudConfig(center=tuple(setup.center), half_extent=setup.half_extent)
