@@ -142,7 +142,7 @@ class SimNode(Node):
         self._loop_stopped = threading.Event()
         self._lock = threading.Lock()  # the simulation, the controllers, the goal slots, _closing
 
-        loop_group, request_group, action_group = (MutuallyExclusiveCallbackGroup(), MutuallyExclusiveCallbackGroup(),
+        loop_group, request_group, gripper_group = (MutuallyExclusiveCallbackGroup(), MutuallyExclusiveCallbackGroup(),
                                                    ReentrantCallbackGroup())
         self.joint_state_pub = self.create_publisher(JointState, "/joint_states", 10)
         self.object_state_pub = self.create_publisher(JointState, "/object_state", 10)
@@ -155,13 +155,19 @@ class SimNode(Node):
         self._publish_tf_static()
 
         arm_ns = f"/{p.arm_controller}"
+        # Trajectory goals start in the order they arrive, as a JTC's: its own exclusive group takes
+        # them one at a time, and each starts in handle_accepted_callback. Started from the execute
+        # callback (a thread-pool task), a goal sent 0.3 s after another could start first and be
+        # replaced by it (CI's teleop test saw its third jog lost that way).
+        self._started: dict[bytes, PendingGoal | InvalidTrajectory] = {}
         self.trajectory_server = ActionServer(
             self, FollowJointTrajectory, f"{arm_ns}/follow_joint_trajectory", self._execute_trajectory,
-            cancel_callback=lambda _: CancelResponse.ACCEPT, callback_group=action_group,
+            cancel_callback=lambda _: CancelResponse.ACCEPT, handle_accepted_callback=self._accept_trajectory,
+            callback_group=MutuallyExclusiveCallbackGroup(),
         )
         self.gripper_server = ActionServer(
             self, GripperCommand, f"/{p.gripper_controller}/gripper_cmd", self._execute_gripper,
-            cancel_callback=lambda _: CancelResponse.ACCEPT, callback_group=action_group,
+            cancel_callback=lambda _: CancelResponse.ACCEPT, callback_group=gripper_group,
         )
         self.create_subscription(JointTrajectory, f"{arm_ns}/joint_trajectory", self._on_trajectory_topic, 10,
                                  callback_group=request_group)
@@ -333,7 +339,8 @@ class SimNode(Node):
             previous.finish("abort", FollowJointTrajectory.Result(
                 error_code=INVALID_GOAL, error_string="preempted: a new trajectory replaced this goal"))
 
-    def _execute_trajectory(self, handle: ServerGoalHandle) -> FollowJointTrajectory.Result:
+    def _accept_trajectory(self, handle: ServerGoalHandle) -> None:
+        """Start an accepted goal now (in arrival order), then let its execute callback wait for it."""
         goal = PendingGoal(handle)
         request = handle.request
         try:
@@ -349,11 +356,18 @@ class SimNode(Node):
             if goal_time > 0:
                 tolerances["goal_time_tolerance"] = goal_time
             self._start_trajectory(request.trajectory, goal, tolerances)
+            self._started[bytes(handle.goal_id.uuid)] = goal
         except InvalidTrajectory as exc:
-            self.get_logger().error(f"rejected trajectory goal: {exc}")
+            self._started[bytes(handle.goal_id.uuid)] = exc
+        handle.execute()
+
+    def _execute_trajectory(self, handle: ServerGoalHandle) -> FollowJointTrajectory.Result:
+        started = self._started.pop(bytes(handle.goal_id.uuid))
+        if isinstance(started, InvalidTrajectory):
+            self.get_logger().error(f"rejected trajectory goal: {started}")
             handle.abort()
-            return FollowJointTrajectory.Result(error_code=exc.error_code, error_string=str(exc))
-        return goal.conclude()
+            return FollowJointTrajectory.Result(error_code=started.error_code, error_string=str(started))
+        return started.conclude()
 
     def _on_trajectory_topic(self, msg: JointTrajectory) -> None:
         try:

@@ -215,6 +215,25 @@ def test_trajectory_goals_follow_jtc_semantics(arm_client, ros_node):
     assert result.result().status == 5  # action_msgs/GoalStatus.STATUS_CANCELED
 
 
+def test_goals_sent_back_to_back_start_in_the_order_sent(arm_client, ros_node):
+    """A teleop jogs by sending goals faster than they end: each must replace the one before it,
+    so the arm ends at the last one sent, however the server's threads take them."""
+    joints = Inbox(ros_node, JointState, "/joint_states")
+    q0 = current_arm(joints)
+    targets = [q0 + np.array([0.02 * (i + 1), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]) for i in range(8)]
+    sent = [arm_client.send_goal_async(trajectory(ARM, [(0.5, q)])) for q in targets]
+    assert wait_for(lambda: all(f.done() for f in sent), 30.0)
+    assert all(f.result().accepted for f in sent)
+    results = [f.result().get_result_async() for f in sent]
+    assert wait_for(lambda: all(r.done() for r in results), 30.0)
+    outcomes = [r.result().result for r in results]
+    assert outcomes[-1].error_code == FollowJointTrajectory.Result.SUCCESSFUL, outcomes[-1].error_string
+    # the others were replaced, or ended first (this node's physics runs as fast as it can)
+    assert all(o.error_code == FollowJointTrajectory.Result.SUCCESSFUL or "preempted" in o.error_string
+               for o in outcomes[:-1]), [o.error_string for o in outcomes]
+    np.testing.assert_allclose(current_arm(joints), targets[-1], atol=0.01)
+
+
 def test_jtc_topic_moves_the_arm(kinect_node, ros_node, arm_client):
     joints = Inbox(ros_node, JointState, "/joint_states")
     publisher = ros_node.create_publisher(JointTrajectory, "/joint_trajectory_controller/joint_trajectory", 10)
