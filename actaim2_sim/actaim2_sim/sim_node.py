@@ -159,7 +159,7 @@ class SimNode(Node):
         # them one at a time, and each starts in handle_accepted_callback. Started from the execute
         # callback (a thread-pool task), a goal sent 0.3 s after another could start first and be
         # replaced by it (CI's teleop test saw its third jog lost that way).
-        self._started: dict[bytes, PendingGoal | InvalidTrajectory] = {}
+        self._started: dict[bytes, PendingGoal] = {}  # by goal id, until its execute callback takes it
         self.trajectory_server = ActionServer(
             self, FollowJointTrajectory, f"{arm_ns}/follow_joint_trajectory", self._execute_trajectory,
             cancel_callback=lambda _: CancelResponse.ACCEPT, handle_accepted_callback=self._accept_trajectory,
@@ -356,18 +356,14 @@ class SimNode(Node):
             if goal_time > 0:
                 tolerances["goal_time_tolerance"] = goal_time
             self._start_trajectory(request.trajectory, goal, tolerances)
-            self._started[bytes(handle.goal_id.uuid)] = goal
         except InvalidTrajectory as exc:
-            self._started[bytes(handle.goal_id.uuid)] = exc
+            self.get_logger().error(f"rejected trajectory goal: {exc}")
+            goal.finish("abort", FollowJointTrajectory.Result(error_code=exc.error_code, error_string=str(exc)))
+        self._started[bytes(handle.goal_id.uuid)] = goal
         handle.execute()
 
     def _execute_trajectory(self, handle: ServerGoalHandle) -> FollowJointTrajectory.Result:
-        started = self._started.pop(bytes(handle.goal_id.uuid))
-        if isinstance(started, InvalidTrajectory):
-            self.get_logger().error(f"rejected trajectory goal: {started}")
-            handle.abort()
-            return FollowJointTrajectory.Result(error_code=started.error_code, error_string=str(started))
-        return started.conclude()
+        return self._started.pop(bytes(handle.goal_id.uuid)).conclude()
 
     def _on_trajectory_topic(self, msg: JointTrajectory) -> None:
         try:
