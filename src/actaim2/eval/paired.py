@@ -1,0 +1,121 @@
+"""Two evaluation runs compared sample by sample: an exact McNemar test on the same keys.
+
+A change to how keyposes are decoded or planned (``--hand-half-turn``, a checkpoint's
+``decode_sigma_px``) is judged on the samples both runs executed: same key, hence the same
+object, reset seed and sample seed. Samples that succeed in both runs or fail in both say
+nothing about the change; only the discordant ones do, so their two counts carry the test.
+Comparing the two pooled SSRs instead (two Wilson intervals, or Fisher's test) treats the runs as
+independent and spends the pairing: with 1536 samples per split a 2-point change is inside
+either run's interval yet can be clear in the discordant counts.
+
+McNemar's exact test is the two-sided binomial test of ``only_a`` out of ``only_a + only_b``
+discordant samples at 1/2 (McNemar 1947; the exact form is recommended over the chi-squared one
+for the small discordant counts of a category cell, Fagerland et al. 2013). The adoption rules
+in docs/evaluation.md are written against its p-value.
+"""
+from __future__ import annotations
+
+from collections import defaultdict
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+from actaim2.eval.stats import Rate
+from actaim2.keypose import PHASE_NAMES
+
+AVG = "AVG"
+# A record's fields that must agree for two records of one key to be the same sample.
+SAME_SAMPLE = ("object", "split", "reset_seed", "sample_seed", "requested_cluster")
+
+
+class UnpairedError(ValueError):
+    """The two runs share no sample, or a key names different samples in them (named in the message)."""
+
+
+def mcnemar_exact(only_a: int, only_b: int) -> float:
+    """Two-sided exact McNemar p-value of the discordant counts; 1 when there is none."""
+    from scipy.stats import binomtest
+
+    if only_a < 0 or only_b < 0:
+        raise ValueError(f"discordant counts must be >= 0, got {only_a} and {only_b}")
+    if only_a + only_b == 0:
+        return 1.0
+    return float(binomtest(only_a, only_a + only_b, 0.5).pvalue)
+
+
+@dataclass(frozen=True)
+class PairedCell:
+    """The paired samples of one (method, split, category or AVG): the 2 x 2 table and phase counts."""
+
+    both: int = 0
+    only_a: int = 0
+    only_b: int = 0
+    neither: int = 0
+    ran_a: int = 0  # samples that ran all four phases in run A
+    ran_b: int = 0
+
+    @property
+    def samples(self) -> int:
+        return self.both + self.only_a + self.only_b + self.neither
+
+    @property
+    def rate_a(self) -> Rate:
+        return Rate(self.both + self.only_a, self.samples)
+
+    @property
+    def rate_b(self) -> Rate:
+        return Rate(self.both + self.only_b, self.samples)
+
+    @property
+    def p_value(self) -> float:
+        return mcnemar_exact(self.only_a, self.only_b)
+
+    def __add__(self, other: "PairedCell") -> "PairedCell":
+        return PairedCell(self.both + other.both, self.only_a + other.only_a, self.only_b + other.only_b,
+                          self.neither + other.neither, self.ran_a + other.ran_a, self.ran_b + other.ran_b)
+
+
+def pair_records(a: Mapping[str, dict], b: Mapping[str, dict]) -> list[tuple[dict, dict]]:
+    """The (record in A, record in B) of every key both runs finished, in key order.
+
+    Raises :class:`UnpairedError` if no key is shared, or if a shared key names another sample
+    in the two runs (another evaluation set or seed scheme: pairing them would compare noise)."""
+    keys = sorted(set(a) & set(b))
+    if not keys:
+        raise UnpairedError("the two runs share no sample key: were they made on the same splits and methods?")
+    for key in keys:
+        different = [f for f in SAME_SAMPLE if a[key].get(f) != b[key].get(f)]
+        if different:
+            raise UnpairedError(f"key {key} is another sample in the two runs ({', '.join(different)} differ): "
+                                f"their evaluation sets differ, so their samples cannot be paired")
+    return [(a[k], b[k]) for k in keys]
+
+
+def paired_cells(pairs: Sequence[tuple[dict, dict]]) -> dict[tuple[str, str, str], PairedCell]:
+    """(method, split, category or AVG) -> the paired cell over those samples."""
+    phases = len(PHASE_NAMES)
+    cells: dict[tuple[str, str, str], PairedCell] = defaultdict(PairedCell)
+    for ra, rb in pairs:
+        sa, sb = bool(ra["success"]), bool(rb["success"])
+        one = PairedCell(both=int(sa and sb), only_a=int(sa and not sb), only_b=int(sb and not sa),
+                         neither=int(not (sa or sb)), ran_a=int(ra["phases_executed"] == phases),
+                         ran_b=int(rb["phases_executed"] == phases))
+        for category in (ra["category"], AVG):
+            cells[ra["method"], ra["split"], category] += one
+    return dict(cells)
+
+
+def paired_table(pairs: Sequence[tuple[dict, dict]], titles: Mapping[str, str] | None = None,
+                 split_titles: Mapping[str, str] | None = None) -> list[str]:
+    """Markdown table, one line per (method, split, category) with each split's AVG first."""
+    titles, split_titles = titles or {}, split_titles or {}
+    cells = paired_cells(pairs)
+    order = sorted(cells, key=lambda k: (k[0], k[1], k[2] != AVG, k[2]))
+    lines = ["| method | split | category | paired samples | SSR % A [95 %] | SSR % B [95 %] | only A | only B | "
+             "McNemar exact p | ran all four phases, A / B |", "|---" * 10 + "|"]
+    for method, split, category in order:
+        c = cells[method, split, category]
+        name = f"**{category}**" if category == AVG else category
+        lines.append(f"| {titles.get(method, method)} | {split_titles.get(split, split)} | {name} | {c.samples} | "
+                     f"{c.rate_a.cell()} | {c.rate_b.cell()} | {c.only_a} | {c.only_b} | {c.p_value:.3g} | "
+                     f"{100 * c.ran_a / c.samples:.1f} % / {100 * c.ran_b / c.samples:.1f} % |")
+    return lines
