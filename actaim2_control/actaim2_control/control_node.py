@@ -31,7 +31,7 @@ from actaim2.control.collision import CollisionChecker, Workspace
 from actaim2.control.executor import KeyposeRunner, Outcome
 from actaim2.control.ik import IKOptions, IKSolver
 from actaim2.control.model import RobotModel
-from actaim2.control.planner import KeyposePlanner, PlannerOptions
+from actaim2.control.planner import POLICY_PLANNER, KeyposePlanner, PlannerOptions
 from actaim2.control.trajectory import Limits
 from actaim2.keypose import Keypose
 from actaim2.geometry import is_unit_quaternion
@@ -86,7 +86,7 @@ PARAMETERS = {
     "via_speed_fraction": (_PLAN.via_speed_fraction, "speed at the pre-grasp via point, fraction of the line's top speed"),
     "sample_period": (_PLAN.sample_period, "s between the trajectory points sent to the controller"),
     "ik_restarts": (IKOptions().restarts, "random IK restarts after the attempt seeded from the current joints"),
-    "hand_half_turn": (_PLAN.hand_half_turn, "a keypose and its half turn about the approach axis are one grasp of a "
+    "hand_half_turn": (POLICY_PLANNER.hand_half_turn, "a keypose and its half turn about the approach axis are one grasp of a "
                                              "two-finger hand: plan whichever the arm can take (INIT as given first, "
                                              "REACH and MANIPULATE as the hand already is; MANIPULATE never turns)"),
 }

@@ -104,15 +104,18 @@ def test_other_checkpoint_refused(checkpoints, tmp_path) -> None:
     assert result.returncode == 2 and "actaim2 results made with " + "0" * 64 in result.stderr
 
 
-def test_other_planner_refused(checkpoints, tmp_path) -> None:
-    """Results planned with and without the hand's half turn never mix either."""
+@pytest.mark.parametrize("recorded, flags", [(False, ()), (True, ("--no-hand-half-turn",))])
+def test_other_planner_refused(checkpoints, tmp_path, recorded: bool, flags: tuple[str, ...]) -> None:
+    """Results planned with and without the hand's half turn never mix either: the default (on) against a run
+    made without it, and --no-hand-half-turn against one made with it."""
     out = tmp_path / "planner"
     out.mkdir()
     (out / "run.json").write_text(json.dumps({"eval_set_version": 1, "robot": "panda", "rig": "ring5",
-                                              "hand_half_turn": True, "methods": {}}))
-    result = subprocess.run(evaluate("--smoke", "--out", out, "--checkpoint", checkpoints["cgmvae"], "--methods", "actaim2"),
-                            capture_output=True, text=True, timeout=300)
-    assert result.returncode == 2 and "hand_half_turn True, this run has False" in result.stderr, result.stderr
+                                              "hand_half_turn": recorded, "methods": {}}))
+    result = subprocess.run(evaluate("--smoke", "--out", out, "--checkpoint", checkpoints["cgmvae"], "--methods", "actaim2",
+                                     *flags), capture_output=True, text=True, timeout=300)
+    message = f"hand_half_turn {recorded}, this run has {not recorded}"
+    assert result.returncode == 2 and message in result.stderr, result.stderr
 
 
 @pytest.mark.timeout(900)

@@ -61,9 +61,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(ActAIM2: bandit over clusters; --cvae / --vqvae: CEM over their embedding)")
     parser.add_argument("--grounding-iterations", type=int, default=50, help="samples per grounding run")
     parser.add_argument("--grounding-seeds", type=int, default=5, help="grounding runs per method and target")
-    parser.add_argument("--hand-half-turn", action="store_true",
+    parser.add_argument("--hand-half-turn", action=argparse.BooleanOptionalAction, default=None,
                         help="plan each INIT/REACH keypose or its half turn about the approach axis, whichever the planner "
-                             "accepts (nearer the current tcp orientation first); recorded in run.json")
+                             "accepts (nearer the current tcp orientation first; default on, as control_node); "
+                             "recorded in run.json")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -130,6 +131,7 @@ def _encoder(args: argparse.Namespace, goal_rvt: Path) -> Path | None:
 
 
 def main(args: argparse.Namespace) -> int:
+    from actaim2.control.planner import POLICY_PLANNER
     from actaim2.eval.checkpoints import describe, perception_of
     from actaim2.eval.data_collection import data_collection_samplers
     from actaim2.eval.evalset import EVAL_SET_VERSION, catalogue_objects, folder_objects
@@ -141,6 +143,7 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.perception.config import load_perception_config
 
     preset = _preset(args)
+    half_turn = POLICY_PLANNER.hand_half_turn if args.hand_half_turn is None else args.hand_half_turn
     try:
         stems, methods = _methods(args)
         described = {m: describe(stems[m]) for m in methods if m in stems}
@@ -163,7 +166,7 @@ def main(args: argparse.Namespace) -> int:
         render_path = _render_path(perception, args)
         gmm = data_collection_samplers(args.data) if "data_collection" in methods else None
         encoder = _encoder(args, stems["goal_rvt"]) if "goal_rvt" in methods else None
-        run = {"eval_set_version": EVAL_SET_VERSION, "robot": args.robot, "rig": perception.rig, "hand_half_turn": args.hand_half_turn,
+        run = {"eval_set_version": EVAL_SET_VERSION, "robot": args.robot, "rig": perception.rig, "hand_half_turn": half_turn,
                "methods": {m: described.get(m, {}).get("weights_sha256") or ("dataset " + _data_digest(args.data)
                                                                           if m == "data_collection" else m) for m in methods}}
         check_run(args.out, run)
@@ -172,7 +175,7 @@ def main(args: argparse.Namespace) -> int:
         return 2
     setup = WorkerSetup(args.robot, perception.rig, render_path, tuple(perception.center), float(perception.half_extent),
                         {m: str(stems[m]) for m in described}, str(encoder) if encoder else None, gmm,
-                        hand_half_turn=args.hand_half_turn)
+                        hand_half_turn=half_turn)
     if args.grounding:
         return _grounding(args, setup, methods)
     clusters = {m: described[m]["clusters"] if m in described and m != "goal_rvt" else 0 for m in methods}

@@ -10,6 +10,7 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Sequence
 
+from actaim2.control.planner import POLICY_PLANNER
 from actaim2.data.collect import PRECHECK_IK_RESTARTS, CollectConfig
 
 _COLLECT_DEFAULTS = {f.name: f.default for f in dataclasses.fields(CollectConfig)}
@@ -30,7 +31,7 @@ class WorkerSetup:
     velocity_scaling: float = _COLLECT_DEFAULTS["velocity_scaling"]
     max_samples: int = _COLLECT_DEFAULTS["max_samples"]
     device: str = "cpu"
-    hand_half_turn: bool = False  # PlannerOptions.hand_half_turn for every row's keyposes
+    hand_half_turn: bool = POLICY_PLANNER.hand_half_turn  # PlannerOptions.hand_half_turn for every row's keyposes
 
 
 class EvalWorker:
