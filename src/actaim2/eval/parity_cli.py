@@ -92,7 +92,7 @@ def main(args: argparse.Namespace) -> int:
     ros = []
     tolerance = {} if args.node_tolerances else LIBRARY_TOLERANCE
     graph.start({"sim_node": {"render_path": render_path, **tolerance}, "fusion_node": fusion, "policy_node": policy,
-                 "control_node": {"use_cloud": True, **CONTROL_WAITS, **tolerance}})
+                 "control_node": {"use_cloud": True, "hand_half_turn": setup.hand_half_turn, **CONTROL_WAITS, **tolerance}})
     try:
         for i, task in enumerate(tasks):
             ros.append(graph.episode(i, task.obj.category, task.obj.instance, task.reset_seed, task.cluster,
@@ -113,6 +113,7 @@ def main(args: argparse.Namespace) -> int:
               f"- checkpoint `{described['path']}`, weights sha256 `{described['weights_sha256']}`, {described['clusters']} clusters",
               f"- graph {args.graph} (ROS_DOMAIN_ID {domain}), robot {setup.robot}, render path {render_path}, "
               f"velocity scaling {setup.velocity_scaling}, initial DoF fraction {setup.dof_fraction}",
+              f"- planner: hand_half_turn {setup.hand_half_turn} on both paths",
               "- goal tolerances: " + ("the nodes' own (--node-tolerances)" if args.node_tolerances else
                                        "not checked on sim_node and control_node, as the library's executor"),
               f"- library {library_seconds:.0f} s, ROS loop {ros_seconds:.0f} s (graph start included), "
