@@ -98,7 +98,7 @@ def test_other_checkpoint_refused(checkpoints, tmp_path) -> None:
     out = tmp_path / "mix"
     out.mkdir()
     (out / "run.json").write_text(json.dumps({"eval_set_version": 1, "robot": "panda", "rig": "ring5",
-                                              "methods": {"actaim2": "0" * 64}}))
+                                              "hand_half_turn": True, "methods": {"actaim2": "0" * 64}}))
     result = subprocess.run(evaluate("--smoke", "--out", out, "--checkpoint", checkpoints["cgmvae"], "--methods", "actaim2"),
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 2 and "actaim2 results made with " + "0" * 64 in result.stderr
@@ -114,7 +114,8 @@ def test_other_planner_refused(checkpoints, tmp_path, recorded: bool, flags: tup
                                               "hand_half_turn": recorded, "methods": {}}))
     result = subprocess.run(evaluate("--smoke", "--out", out, "--checkpoint", checkpoints["cgmvae"], "--methods", "actaim2",
                                      *flags), capture_output=True, text=True, timeout=300)
-    message = f"hand_half_turn {recorded}, this run has {not recorded}"
+    message = (f"hand_half_turn {recorded}, this run has {not recorded}: use another --out "
+               f"(or {'--hand-half-turn' if recorded else '--no-hand-half-turn'} to resume it)")
     assert result.returncode == 2 and message in result.stderr, result.stderr
 
 

@@ -33,9 +33,11 @@ def check_run(out: Path, run: dict) -> dict:
     old = json.loads(path.read_text())
     defaults = {"hand_half_turn": False}  # a run.json written before the planner option existed
     for field in ("eval_set_version", "robot", "rig", "hand_half_turn"):
-        if old.get(field, defaults.get(field)) != run.get(field, defaults.get(field)):
-            raise RunMismatchError(f"{out} holds results of {field} {old.get(field)!r}, this run has {run.get(field)!r}: "
-                                   f"use another --out")
+        recorded = old.get(field, defaults.get(field))
+        if recorded != run.get(field, defaults.get(field)):
+            match = f" (or {'--hand-half-turn' if recorded else '--no-hand-half-turn'} to resume it)" if field == "hand_half_turn" else ""
+            raise RunMismatchError(f"{out} holds results of {field} {recorded!r}, this run has {run.get(field)!r}: "
+                                   f"use another --out{match}")
     for method, identity in run["methods"].items():
         before = old["methods"].get(method)
         if before is not None and before != identity:
