@@ -132,7 +132,7 @@ def test_keyboard_teleop_through_a_pseudo_terminal(start_node, ros_node, tmp_pat
             mark = len(teleop.screen)
             teleop.type(key)
             assert teleop.shows(f"{name} executed", mark, timeout=60.0), teleop.screen[mark:] + control.output()[-2000:]
-        assert wait_for(lambda: len(topics.keyposes) == 4, 10.0)
+        assert wait_for(lambda: len(topics.keyposes) == 4, 10.0), ([k.phase for k in topics.keyposes], control.output()[-3000:])
         assert [k.phase for k in topics.keyposes] == [0, 1, 2, 3]
         assert [k.gripper_closed for k in topics.keyposes] == [False, False, True, True]
         marked = np.array([[k.pose.position.x, k.pose.position.y, k.pose.position.z] for k in topics.keyposes])
