@@ -24,8 +24,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_differences(a: dict, b: dict) -> list[str]:
     """What the two run.json files record differently, one ``field: A -> B`` per line."""
-    flat_a = {**{k: v for k, v in a.items() if k != "methods"}, **{f"checkpoint of {m}": d for m, d in a["methods"].items()}}
-    flat_b = {**{k: v for k, v in b.items() if k != "methods"}, **{f"checkpoint of {m}": d for m, d in b["methods"].items()}}
+    def flat(run: dict) -> dict:
+        return {**{k: v for k, v in run.items() if k != "methods"}, **{f"checkpoint of {m}": d for m, d in run["methods"].items()}}
+
+    flat_a, flat_b = flat(a), flat(b)
     return [f"{k}: {flat_a.get(k, '-')} -> {flat_b.get(k, '-')}" for k in sorted(set(flat_a) | set(flat_b))
             if flat_a.get(k) != flat_b.get(k)]
 

@@ -20,9 +20,9 @@ from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 from actaim2.eval.stats import Rate
+from actaim2.eval.tables import AVG
 from actaim2.keypose import PHASE_NAMES
 
-AVG = "AVG"
 # A record's fields that must agree for two records of one key to be the same sample.
 SAME_SAMPLE = ("object", "split", "reset_seed", "sample_seed", "requested_cluster")
 
