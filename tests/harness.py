@@ -38,6 +38,12 @@ def wait_for(predicate: Callable[[], bool], timeout: float, interval: float = 0.
     return bool(predicate())
 
 
+def matched(subscription) -> Callable[[], bool]:
+    """A predicate for :func:`wait_for`: ``subscription`` has matched a publisher. A volatile
+    subscription misses what is published before the match, and discovery lags on a loaded machine."""
+    return lambda: subscription.get_publisher_count() >= 1
+
+
 class NodeProcess:
     """A node started through `ros2 run`, its output captured in a log file."""
 

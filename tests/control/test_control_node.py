@@ -16,7 +16,7 @@ from actaim2.control.model import RobotModel
 from actaim2.geometry import matrix_to_pose, rotation_angle
 from actaim2.robots import load_robot_spec
 
-from harness import wait_for
+from harness import matched, wait_for
 
 SCENE = {"category": "table", "instance": 0, "seed": 0}
 SIM_PARAMS = {"robot": "panda", "camera_rate": 0.0, "render_path": "raycast", **SCENE}
@@ -58,7 +58,8 @@ class Recorder:
         self.keyposes = []
         node.create_subscription(JointState, "/joint_states", self._on_joints, 50)
         node.create_subscription(JointState, "/object_state", lambda m: self.object.update(zip(m.name, m.position)), 10)
-        node.create_subscription(Keypose, "/keypose", self.keyposes.append, QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+        self.keypose_sub = node.create_subscription(Keypose, "/keypose", self.keyposes.append,
+                                                    QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
 
     def _on_joints(self, msg) -> None:
         with self.lock:
@@ -138,6 +139,7 @@ def start_cell(start_node, ros_node, control_params: dict | None = None):
     recorder, client = Recorder(ros_node), KeyposeClient(ros_node)
     assert client.client.wait_for_server(timeout_sec=30.0), control.output()
     assert wait_for(lambda: len(recorder.joints) > 5, 30.0), "no /joint_states from the sim"
+    assert wait_for(matched(recorder.keypose_sub), 30.0), control.output()
     return recorder, client, control
 
 

@@ -17,7 +17,7 @@ import yaml
 from actaim2.control.model import RobotModel
 from actaim2.robots import load_robot_spec
 
-from harness import wait_for
+from harness import matched, wait_for
 
 SIM_PARAMS = {"robot": "panda", "camera_rate": 0.0, "render_path": "raycast", "category": "table", "instance": 0, "seed": 0}
 TELEOP_PARAMS = {"robot": "panda", "translation_step": 0.02, "max_speed": 0.2, "object_id": "table_000"}
@@ -83,7 +83,8 @@ class Topics:
         self.episodes, self.modes, self.keyposes, self.joints = [], [], [], {}
         node.create_subscription(EpisodeEvent, "/episode", self.episodes.append, QoSProfile(depth=10, **latched))
         node.create_subscription(InteractionMode, "/interaction_mode", self.modes.append, QoSProfile(depth=10, **latched))
-        node.create_subscription(Keypose, "/keypose", self.keyposes.append, QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+        self.keypose_sub = node.create_subscription(Keypose, "/keypose", self.keyposes.append,
+                                                     QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
         node.create_subscription(JointState, "/joint_states", lambda m: self.joints.update(zip(m.name, m.position)), 10)
 
 
@@ -125,6 +126,7 @@ def test_keyboard_teleop_through_a_pseudo_terminal(start_node, ros_node, tmp_pat
 
         assert wait_for(lambda: np.linalg.norm(tcp() - target) < 3e-3, 10.0), (tcp(), target)  # the arm followed
 
+        assert wait_for(matched(topics.keypose_sub), 30.0), control.output()[-2000:]
         mark = len(teleop.screen)
         teleop.type("3")
         assert teleop.shows("MANIPULATE not marked: the next keypose is INIT", mark), teleop.screen

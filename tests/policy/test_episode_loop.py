@@ -23,7 +23,7 @@ from pathlib import Path
 import pytest
 
 from actaim2.runtime import FASTDDS_PROFILE_VAR, FASTDDS_UDP_PROFILE
-from harness import NodeProcess, wait_for
+from harness import NodeProcess, matched, wait_for
 
 SCENE = {"category": "storage_furniture", "instance": 0, "seed": 0}
 CAMERAS = [f"/cameras/cam{k}/points" for k in range(5)]
@@ -85,10 +85,11 @@ class Listener:
         reliable = dict(depth=50, reliability=ReliabilityPolicy.RELIABLE)
         node.create_subscription(EpisodeEvent, "/episode", self._keep(self.events),
                                  QoSProfile(durability=DurabilityPolicy.TRANSIENT_LOCAL, **reliable))
-        node.create_subscription(Keypose, "/keypose", self._keep(self.keyposes), QoSProfile(**reliable))
+        keyposes = node.create_subscription(Keypose, "/keypose", self._keep(self.keyposes), QoSProfile(**reliable))
         node.create_subscription(GoalStatusArray, "/execute_keypose/_action/status",
                                  lambda m: self._keep(self.statuses)([s.status for s in m.status_list]),
                                  qos_profile_action_status_default)
+        assert wait_for(matched(keyposes), 30.0), "no /keypose publisher matched: is control_node up?"
 
     def _keep(self, inbox: list):
         def store(msg) -> None:
