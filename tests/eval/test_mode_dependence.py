@@ -55,3 +55,15 @@ def test_the_report_has_the_table():
     text = report(records(np.random.default_rng(2), objects=3, select=1.0), ["actaim2"], ["# test"])
     section = text.split("## Do the groups select outcomes?")[1].split("##")[0]
     assert "| ActAIM2 | " in section and "p 0.002" in section  # 1 / (1 + 500): no permutation reached it
+
+
+def test_a_row_with_one_sample_per_group_has_no_mode_tables():
+    """The random sampler at 8 per object: one sample per pseudo-cluster, so no half B to measure a
+    mode on and an MI that every permutation ties; it is named, not shown as empty rows or p 1.000."""
+    once = [r for r in records(np.random.default_rng(3), objects=3, select=0.0, method="random") if r["repetition"] == 0]
+    text = report(records(np.random.default_rng(2), objects=3, select=1.0) + once, ["actaim2", "random"], ["# test"])
+    table1, rest = text.split("## Table 2")
+    assert "| Random sampler | " in table1  # its SSR stays
+    modes = rest.split("## SSR per cluster")[0]
+    assert "Without Mode SSR (one sample per group): Random sampler." in modes
+    assert "| Random sampler" not in modes and "| ActAIM2, 1st mode | " in modes and "| ActAIM2 | " in modes
