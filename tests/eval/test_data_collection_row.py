@@ -18,6 +18,7 @@ from actaim2.data.storage import DatasetWriter, encode_trajectory, trajectory_id
 from actaim2.data.trajectory import OBSERVATION_NAMES, CameraImage, ObjectState, Trajectory
 from actaim2.eval.data_collection import data_collection_samplers
 from actaim2.eval.evalset import EvalObject
+from actaim2.eval.sources import pseudo_group
 from actaim2.eval.tasks import SampleCounts, plan_tasks
 from actaim2.eval.worker import EvalWorker, WorkerSetup
 from actaim2.perception.config import load_perception_config
@@ -68,7 +69,7 @@ def test_data_collection_row_fits_and_executes(tmp_path) -> None:
     rows = [worker.run(t) for t in tasks[:2]]
     for task, row in zip(tasks, rows):
         assert "error" not in row, row
-        assert (row["group"], row["repetition"]) == (task.slot % 8, 0)
+        assert (row["group"], row["repetition"]) == pseudo_group(obj.key, task.slot)
         assert not row["note"].startswith("no sample: no sampler")
     # an object the dataset does not hold has no sampler: the sample fails with the reason (the CLI plans none)
     missing = worker.run(plan_tasks({"data_collection": 0}, [EvalObject("heldout_category", "safe", 0)],

@@ -16,6 +16,8 @@ from pathlib import Path
 
 import pytest
 
+from actaim2.eval.methods import PSEUDO_GROUPING
+
 from tiny_checkpoint import CLUSTERS, make_checkpoint, make_encoder
 
 SMOKE_OBJECTS = 3  # presets.PRESETS["smoke"]: storage_furniture 0 and 8, box 0
@@ -98,7 +100,8 @@ def test_other_checkpoint_refused(checkpoints, tmp_path) -> None:
     out = tmp_path / "mix"
     out.mkdir()
     (out / "run.json").write_text(json.dumps({"eval_set_version": 1, "robot": "panda", "rig": "ring5",
-                                              "hand_half_turn": True, "methods": {"actaim2": "0" * 64}}))
+                                              "hand_half_turn": True, "pseudo_grouping": PSEUDO_GROUPING,
+                                              "methods": {"actaim2": "0" * 64}}))
     result = subprocess.run(evaluate("--smoke", "--out", out, "--checkpoint", checkpoints["cgmvae"], "--methods", "actaim2"),
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 2 and "actaim2 results made with " + "0" * 64 in result.stderr

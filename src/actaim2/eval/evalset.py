@@ -34,7 +34,7 @@ FOLDERS = "folders"
 SPLITS = (TRAIN, UNSEEN_INSTANCE, UNSEEN_CATEGORY)
 SPLIT_TITLES = {TRAIN: "Seen objects", UNSEEN_INSTANCE: "Unseen instances", UNSEEN_CATEGORY: "Unseen categories",
                 FOLDERS: "PartNet-Mobility folders"}
-_RESET, _SAMPLE = 1, 2
+_RESET, _SAMPLE, _PSEUDO = 1, 2, 3
 
 
 @dataclass(frozen=True)
@@ -66,6 +66,11 @@ def reset_seed(obj: EvalObject, slot: int) -> int:
 def sample_seed(obj: EvalObject, slot: int) -> int:
     """The seed of the mode / action draw of sample ``slot``."""
     return _derive(obj.key, _SAMPLE, slot)
+
+
+def pseudo_order_seed(key: str, repetition: int) -> int:
+    """Seed of the order in which repetition ``repetition`` of object ``key`` visits the pseudo-clusters."""
+    return _derive(key, _PSEUDO, repetition)
 
 
 def catalogue_objects(splits: tuple[str, ...] = SPLITS, instances_per_category: int = 0,

@@ -135,7 +135,7 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.eval.checkpoints import describe, perception_of
     from actaim2.eval.data_collection import data_collection_samplers
     from actaim2.eval.evalset import EVAL_SET_VERSION, catalogue_objects, folder_objects
-    from actaim2.eval.methods import ABLATIONS, ablation_problem
+    from actaim2.eval.methods import ABLATIONS, PSEUDO_GROUPING, ablation_problem
     from actaim2.eval.results import ResultLog, RunMismatchError, check_run
     from actaim2.eval.tables import report
     from actaim2.eval.tasks import plan_tasks
@@ -167,6 +167,7 @@ def main(args: argparse.Namespace) -> int:
         gmm = data_collection_samplers(args.data) if "data_collection" in methods else None
         encoder = _encoder(args, stems["goal_rvt"]) if "goal_rvt" in methods else None
         run = {"eval_set_version": EVAL_SET_VERSION, "robot": args.robot, "rig": perception.rig, "hand_half_turn": half_turn,
+               "pseudo_grouping": PSEUDO_GROUPING,
                "methods": {m: described.get(m, {}).get("weights_sha256") or ("dataset " + _data_digest(args.data)
                                                                           if m == "data_collection" else m) for m in methods}}
         check_run(args.out, run)

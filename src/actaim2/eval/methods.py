@@ -4,8 +4,8 @@ Grouping (``mode_ssr.py`` chooses a group per mode on half of the samples):
   cluster  the method is asked for each of its K clusters (codes) in turn: ActAIM2 and its input
            ablations, VQVAE-RVT
   goal     the group is the goal (DoF, direction) the oracle was given: Goal-RVT
-  pseudo   no discrete modes: sample ``slot`` falls in pseudo-cluster ``slot mod 8``. Slots have
-           independent seeds, so this is a random partition into 8 equal pseudo-clusters: the
+  pseudo   no discrete modes: each run of 8 consecutive slots visits the 8 pseudo-clusters in a
+           seeded random order (``sources.pseudo_group``), a random partition into 8 equal ones: the
            yardstick for what Mode SSR gives without any mode structure (Data Collection,
            random sampler, ActAIM's CVAE).
 """
@@ -14,6 +14,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 PSEUDO_CLUSTERS = 8  # the paper's K
+# How samples fall into pseudo-clusters (``sources.pseudo_group``), recorded in run.json: results
+# grouped another way (before 2026-12-03: "slot mod 8") must not be mixed with these.
+PSEUDO_GROUPING = "shuffled per repetition"
 
 
 @dataclass(frozen=True)

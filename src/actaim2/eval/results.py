@@ -31,8 +31,9 @@ def check_run(out: Path, run: dict) -> dict:
         path.write_text(json.dumps(run, indent=2, sort_keys=True))
         return run
     old = json.loads(path.read_text())
-    defaults = {"hand_half_turn": False}  # a run.json written before the planner option existed
-    for field in ("eval_set_version", "robot", "rig", "hand_half_turn"):
+    # a run.json written before the planner option, or before pseudo-clusters were shuffled
+    defaults = {"hand_half_turn": False, "pseudo_grouping": "slot mod 8"}
+    for field in ("eval_set_version", "robot", "rig", "hand_half_turn", "pseudo_grouping"):
         recorded = old.get(field, defaults.get(field))
         if recorded != run.get(field, defaults.get(field)):
             match = f" (or {'--hand-half-turn' if recorded else '--no-hand-half-turn'} to resume it)" if field == "hand_half_turn" else ""
