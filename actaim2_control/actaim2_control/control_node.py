@@ -5,7 +5,9 @@ A thin adapter over ``actaim2.control``: it checks each goal, publishes the keyp
 time-optimal jerk-limited timing) and execute it through :class:`RosExecutor`
 (FollowJointTrajectory or the JTC topic, GripperCommand, /joint_states). Feedback carries the
 phase and the progress along the trajectory; the result carries the reached tcp's position
-and orientation errors.
+and orientation errors and which candidate ran: a goal's ``alternatives`` (policy_node's
+fallback rotations for the same point) are planned in turn when the planner refuses the
+keypose, and nothing moves for a refused one.
 
 Malformed goals (NaN, a non-unit quaternion, a frame other than `world`, an unknown phase,
 a velocity scaling outside (0, 1]) and goals arriving while another runs are accepted and
@@ -33,10 +35,10 @@ from actaim2.control.ik import IKOptions, IKSolver
 from actaim2.control.model import RobotModel
 from actaim2.control.planner import POLICY_PLANNER, KeyposePlanner, PlannerOptions
 from actaim2.control.trajectory import Limits
-from actaim2.keypose import Keypose
 from actaim2.geometry import is_unit_quaternion
 from actaim2.perception.cloud_codec import CloudFormatError
 from actaim2.robots import load_robot_spec
+from actaim2.ros_keypose import keypose_data
 from actaim2.ros_main import spin
 from actaim2.ros_params import declare_parameters
 from actaim2_perception.pointcloud2 import from_msg
@@ -178,19 +180,30 @@ class ControlNode(Node):
         return (f"no obstacle cloud on {self._cloud_topic} stamped at or after the keypose ({wanted / 1e9:.3f} s) within "
                 f"{self._cloud_wait:g} s ({newest}): not planned around an older scene")
 
-    def _check_goal(self, goal: ExecuteKeypose.Goal) -> str:
-        """What is wrong with a goal ("" when nothing)."""
-        k = goal.keypose
+    def _check_keypose(self, k: KeyposeMsg, name: str) -> str:
+        """What is wrong with one keypose of a goal ("" when nothing)."""
         position = np.array([k.pose.position.x, k.pose.position.y, k.pose.position.z])
         quat = np.array([k.pose.orientation.x, k.pose.orientation.y, k.pose.orientation.z, k.pose.orientation.w])
         if k.header.frame_id not in self._frames:
-            return f"keypose frame '{k.header.frame_id}' is not one of {sorted(self._frames)}"
+            return f"{name} frame '{k.header.frame_id}' is not one of {sorted(self._frames)}"
         if not np.all(np.isfinite(position)):
-            return f"keypose position {position.tolist()} is not finite"
+            return f"{name} position {position.tolist()} is not finite"
         if not is_unit_quaternion(quat):
-            return f"keypose orientation {quat.tolist()} is not a unit quaternion (x, y, z, w)"
+            return f"{name} orientation {quat.tolist()} is not a unit quaternion (x, y, z, w)"
         if k.phase > KeyposeMsg.PHASE_MANIPULATE:
-            return f"unknown phase {k.phase}: expected 0..3 (INIT, REACH, GRASP, MANIPULATE)"
+            return f"{name}: unknown phase {k.phase}: expected 0..3 (INIT, REACH, GRASP, MANIPULATE)"
+        return ""
+
+    def _check_goal(self, goal: ExecuteKeypose.Goal) -> str:
+        """What is wrong with a goal ("" when nothing). Alternatives are fallbacks for the same
+        step: the same phase as the keypose."""
+        problem = self._check_keypose(goal.keypose, "keypose")
+        for i, alt in enumerate(goal.alternatives):
+            problem = problem or self._check_keypose(alt, f"alternatives[{i}]")
+            if not problem and alt.phase != goal.keypose.phase:
+                problem = f"alternatives[{i}] is phase {alt.phase}, the keypose phase {goal.keypose.phase}: fallbacks are for the same step"
+        if problem:
+            return problem
         if not (np.isfinite(goal.velocity_scaling) and 0.0 <= goal.velocity_scaling <= 1.0):
             return f"velocity_scaling {goal.velocity_scaling} is not in (0, 1] (0 = the node's default)"
         return ""
@@ -205,12 +218,7 @@ class ControlNode(Node):
         try:
             k = goal.keypose
             self._keypose_pub.publish(k)
-            keypose = Keypose(
-                int(k.phase),
-                np.array([k.pose.position.x, k.pose.position.y, k.pose.position.z]),
-                np.array([k.pose.orientation.x, k.pose.orientation.y, k.pose.orientation.z, k.pose.orientation.w]),
-                bool(k.gripper_closed),
-            )
+            candidates = [keypose_data(m) for m in (k, *goal.alternatives)]
             scaling = float(goal.velocity_scaling) or self._default_scaling
             stale = self._wait_for_cloud(k)
             if stale:
@@ -222,18 +230,20 @@ class ControlNode(Node):
                 handle.publish_feedback(ExecuteKeypose.Feedback(phase=phase, progress=float(progress)))
 
             try:
-                outcome = self._runner.run(keypose, scaling, feedback)
+                outcome, candidate = self._runner.run_first(candidates, scaling, feedback)
             except RuntimeError as exc:  # no /joint_states: nothing was moved
-                outcome = Outcome(False, str(exc), float("nan"), float("nan"), "joint_states")
-            return self._finish(handle, outcome)
+                outcome, candidate = Outcome(False, str(exc), float("nan"), float("nan"), "joint_states"), -1
+            if candidate > 0:
+                self.get_logger().info(f"keypose refused by the planner: executing alternatives[{candidate - 1}]")
+            return self._finish(handle, outcome, candidate)
         finally:
             self._executor.cancel_requested = lambda: False
             self._busy.release()
 
-    def _finish(self, handle: ServerGoalHandle, outcome: Outcome) -> ExecuteKeypose.Result:
+    def _finish(self, handle: ServerGoalHandle, outcome: Outcome, candidate: int = -1) -> ExecuteKeypose.Result:
         result = ExecuteKeypose.Result(
             success=outcome.success, message=outcome.message,
-            position_error=outcome.position_error, orientation_error=outcome.orientation_error,
+            position_error=outcome.position_error, orientation_error=outcome.orientation_error, candidate=candidate,
         )
         if handle.is_cancel_requested and not outcome.success:
             handle.canceled()

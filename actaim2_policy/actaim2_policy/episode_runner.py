@@ -43,11 +43,11 @@ from rclpy.task import Future
 from sensor_msgs.msg import JointState, PointCloud2
 
 from actaim2.keypose import PHASE_NAMES
-from actaim2.keypose import Keypose as KeyposeData
 from actaim2.policy.episodes import (EpisodeLog, EpisodeRecord, EpisodeSpec, PhaseRecord, is_success, largest_change,
                                      plan_episodes, summary_table)
 from actaim2.policy.requests import is_transient
 from actaim2.policy.retry import BACKOFF_CAP, Backoff, wait_until
+from actaim2.ros_keypose import keypose_data, keypose_msg
 from actaim2.ros_main import run_client
 from actaim2.ros_params import declare_parameters
 from actaim2_policy.grasp_baseline import GraspBaseline
@@ -97,21 +97,6 @@ class Interrupted(Exception):
 
 def stamp_ns(stamp) -> int:
     return stamp.sec * 1_000_000_000 + stamp.nanosec
-
-
-def keypose_data(msg: Keypose) -> KeyposeData:
-    p, q = msg.pose.position, msg.pose.orientation
-    return KeyposeData(int(msg.phase), np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w]), bool(msg.gripper_closed))
-
-
-def keypose_msg(kp: KeyposeData, stamp) -> Keypose:
-    msg = Keypose(gripper_closed=bool(kp.gripper_closed), phase=int(kp.phase))
-    msg.header.frame_id = "world"
-    msg.header.stamp = stamp
-    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(v) for v in kp.position)
-    q = msg.pose.orientation
-    q.x, q.y, q.z, q.w = (float(v) for v in kp.quat_xyzw)
-    return msg
 
 
 class EpisodeRunner(Node):
@@ -280,12 +265,13 @@ class EpisodeRunner(Node):
             raise EpisodeFailure(str(exc)) from exc
         return [keypose_msg(kp, cloud.header.stamp) for kp in keyposes], stamp_ns(cloud.header.stamp)
 
-    def _execute(self, keypose: Keypose) -> ExecuteKeypose.Result:
-        """Run one goal; on a timeout or Ctrl-C the goal is cancelled before the error goes up."""
+    def _execute(self, keypose: Keypose, alternatives: list[Keypose]) -> ExecuteKeypose.Result:
+        """Run one goal (control_node falls back on ``alternatives`` when it refuses ``keypose``); on a
+        timeout or Ctrl-C the goal is cancelled before the error goes up."""
         client = self._execute_client
         if not client.server_is_ready():
             raise EpisodeFailure("/execute_keypose is not available (control_node stopped or restarted?)")
-        goal = ExecuteKeypose.Goal(keypose=keypose, velocity_scaling=float(self.p["velocity_scaling"]))
+        goal = ExecuteKeypose.Goal(keypose=keypose, velocity_scaling=float(self.p["velocity_scaling"]), alternatives=alternatives)
         sent = client.send_goal_async(goal)
         try:
             handle = self._wait(sent, float(self.p["call_timeout"]), "/execute_keypose goal", client.server_is_ready,
@@ -332,15 +318,18 @@ class EpisodeRunner(Node):
         for phase in range(len(PHASE_NAMES)):
             if self.policy:
                 answer = self._predict(embedding, phase, gripper_closed, not_before)
-                keypose, confidence, observed = answer.keypose, float(answer.confidence), stamp_ns(answer.keypose.header.stamp)
+                candidates, confidence = [answer.keypose, *answer.alternatives], float(answer.confidence)
+                observed = stamp_ns(answer.keypose.header.stamp)
             else:
-                keypose, confidence, observed = planned[phase], -1.0, cloud_ns
+                candidates, confidence, observed = [planned[phase]], -1.0, cloud_ns
             self._moved = True
-            result = self._execute(keypose)
+            result = self._execute(candidates[0], candidates[1:])
             ended = self.get_clock().now().nanoseconds
+            keypose = candidates[max(result.candidate, 0)]  # the one executed (the prediction when none was)
             record.phases.append(PhaseRecord(phase, keypose_data(keypose).to_json(), confidence, observed / 1e9,
                                              not_before / 1e9, bool(result.success), result.message,
-                                             float(result.position_error), float(result.orientation_error)))
+                                             float(result.position_error), float(result.orientation_error),
+                                             int(result.candidate)))
             if not result.success:
                 # The object decides success, not the arm: a drawer at its end stop keeps the hand
                 # from p2, and a REACH that bumps a door may already have opened it.

@@ -28,10 +28,11 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from actaim2.perception.config import load_perception_config
-from actaim2.policy.inference import ROLES, PolicyLoadError, PolicyModel
+from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, ROLES, PolicyLoadError, PolicyModel
 from actaim2.policy.locate import COMMITTED, installed_folders, resolve_checkpoint
 from actaim2.policy.requests import NO_VIEWS, RequestError, check_cluster, check_embedding, check_fresh, check_phase
 from actaim2.policy.views import Views, accept_views
+from actaim2.ros_keypose import keypose_msg
 from actaim2.ros_main import spin
 from actaim2.ros_params import declare_parameters
 
@@ -48,6 +49,9 @@ PARAMETERS = {
     "torch_threads": (1, "CPU threads for inference; 1 next to the simulator and fusion on 2 cores (a second "
                          "spinning OpenMP thread made each call 10x slower under load)"),
     "views_topic": ("/ortho_views", "views for the mode selector, and for the predictor unless predictor_views_topic is set"),
+    "keypose_alternatives": (KEYPOSE_ALTERNATIVES, "fallbacks answered with each keypose: its point with the next likeliest "
+                                                   "rotations, 30 deg apart, which control_node plans in turn when it refuses "
+                                                   "the keypose (0 = none)"),
     "predictor_views_topic": ("", "views for the action predictor when it was trained with the other robot-filter "
                                   "setting than the selector (fusion_node's alternate_views_topic); empty = views_topic"),
 }
@@ -66,6 +70,9 @@ class PolicyNode(Node):
         super().__init__("policy_node")
         p = declare_parameters(self, PARAMETERS)
         torch.set_num_threads(int(p["torch_threads"]))
+        self._alternatives = int(p["keypose_alternatives"])
+        if self._alternatives < 0:
+            raise ValueError(f"keypose_alternatives {self._alternatives} is negative")
         self._model: PolicyModel | None = None
         self._load_error = ""
         try:
@@ -154,20 +161,16 @@ class PolicyNode(Node):
             check_phase(request.phase)
             views = self._views_for("predictor")
             check_fresh(views.stamp_ns, stamp_ns(request.not_before))
-            prediction = model.predict_keypose(views, eps, request.phase, request.gripper_closed)
+            prediction = model.predict_keypose(views, eps, request.phase, request.gripper_closed, self._alternatives)
         except RequestError as exc:
             return self._refuse(response, str(exc))
         except Exception as exc:  # noqa: BLE001 - answered and logged: the node must keep serving
             return self._refuse(response, f"internal error: {type(exc).__name__}: {exc}", error=True)
         if self._last_mode is None or not np.array_equal(eps, self._last_mode):
             self._publish_mode(views.stamp_ns, -1, eps)  # a mode /sample_mode did not give: cluster unknown
-        kp, msg = prediction.keypose, response.keypose
-        msg.header.frame_id = "world"
-        msg.header.stamp = stamp_msg(views.stamp_ns)
-        msg.phase, msg.gripper_closed = kp.phase, kp.gripper_closed
-        msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(v) for v in kp.position)
-        q = msg.pose.orientation
-        q.x, q.y, q.z, q.w = (float(v) for v in kp.quat_xyzw)
+        stamp = stamp_msg(views.stamp_ns)
+        response.keypose = keypose_msg(prediction.keypose, stamp)
+        response.alternatives = [keypose_msg(k, stamp) for k in prediction.alternatives]
         response.success = True
         response.confidence = prediction.confidence
         return response

@@ -155,14 +155,24 @@ def test_malformed_goals_are_rejected_with_a_message(start_node, ros_node):
         (client.goal(0, [0.4, 0.0, 0.4], DOWN_QUAT, False, frame="camera_link"), "frame 'camera_link'"),
         (client.goal(7, [0.4, 0.0, 0.4], DOWN_QUAT, False), "unknown phase 7"),
         (client.goal(0, [0.4, 0.0, 0.4], DOWN_QUAT, False, scaling=1.5), "velocity_scaling"),
+        (with_alternative(client, client.goal(3, [0.4, 0.0, 0.4], DOWN_QUAT, False)), "alternatives[0] is phase 3"),
+        (with_alternative(client, client.goal(0, [0.4, 0.0, 0.4], [0.0, 0.0, 0.0, 0.5], False)),
+         "alternatives[0] orientation"),
         # well-formed, but there is no robot: nothing moves, the reason is given
         (client.goal(0, [0.4, 0.0, 0.4], DOWN_QUAT, False), "/joint_states"),
     ]
     for goal, expected in cases:
         status, result = client.execute(goal, timeout=20.0)
         assert status == GoalStatus.STATUS_ABORTED and not result.success
-        assert expected in result.message, result.message
+        assert expected in result.message and result.candidate == -1, result.message
     assert node.alive()
+
+
+def with_alternative(client: KeyposeClient, alternative):
+    """A well-formed INIT goal whose one fallback is ``alternative``'s keypose."""
+    goal = client.goal(0, [0.4, 0.0, 0.4], DOWN_QUAT, False)
+    goal.alternatives = [alternative.keypose]
+    return goal
 
 
 def test_four_phase_drawer_pull_through_the_sim(start_node, ros_node, panda, drawer):
@@ -263,9 +273,14 @@ def test_topic_fallback_and_cloud_obstacles(start_node, ros_node, panda):
     assert status == GoalStatus.STATUS_ABORTED and not result.success
     assert "environment_collision" in result.message and "point cloud" in result.message, result.message
 
+    assert result.candidate == -1
+    # The refused keypose with a fallback: nothing moves for the first, the alternative runs.
     position = [0.3, -0.35, 0.35]
-    status, result = client.execute(client.goal(0, position, DOWN_QUAT, False))
-    assert status == GoalStatus.STATUS_SUCCEEDED and result.success, result.message
+    goal = client.goal(0, under_the_plate, DOWN_QUAT, False)
+    goal.alternatives = [client.goal(0, position, DOWN_QUAT, False).keypose]
+    status, result = client.execute(goal)
+    assert status == GoalStatus.STATUS_SUCCEEDED and result.success and result.candidate == 1, result.message
+    assert "executing alternatives[0]" in control.output()
     position_error, orientation_error = tcp_error(panda, recorder, position, DOWN_QUAT)
     assert position_error <= 0.005 and orientation_error <= np.radians(3.0)
 

@@ -50,3 +50,31 @@ def test_primitive_needs_the_four_phases_in_order():
     keypose = Keypose(0, np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]), False)
     with pytest.raises(ValueError, match="phases"):
         runner.run_primitive([keypose, keypose])
+
+
+def test_run_first_falls_back_and_moves_nothing_for_a_refused_keypose():
+    """A policy's keypose the planner refuses is skipped without motion; the next candidate runs.
+    All refused: the first one's refusal (what was asked for), index -1, the arm where it was."""
+    from actaim2.sim.env import SimEnv
+
+    env = SimEnv("panda", cameras=None)
+    env.reset("table", instance=4, seed=0)
+    model = RobotModel(env.spec)
+    checker = CollisionChecker(model)
+    executor = SimEnvExecutor(env)
+    runner = KeyposeRunner(KeyposePlanner(model, checker, IKSolver(model, checker)), executor, np.random.default_rng(0))
+    down = np.array([1.0, 0.0, 0.0, 0.0])  # tcp pointing down (x, y, z, w)
+    far = Keypose(0, np.array([1.8, 0.0, 0.5]), down, False)  # beyond the arm's reach
+    start = executor.arm_state().position
+
+    outcome, index = runner.run_first([far, far], velocity_scaling=0.5)
+    assert index == -1 and not outcome.success and outcome.reason == "unreachable"
+    assert "[1.8, 0.0, 0.5]" in outcome.message
+    np.testing.assert_allclose(executor.arm_state().position, start, atol=1e-6)
+
+    near = Keypose(0, np.array([0.45, 0.0, 0.45]), down, False)
+    outcome, index = runner.run_first([far, near], velocity_scaling=0.5)
+    assert index == 1 and outcome.success, outcome.message
+    assert np.linalg.norm(env.tcp_pose()[:3, 3] - near.position) <= 0.005
+    with pytest.raises(ValueError, match="no keypose"):
+        runner.run_first([])

@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from actaim2.eval.methods import PSEUDO_GROUPING
+from actaim2.policy.inference import KEYPOSE_ALTERNATIVES
 
 from tiny_checkpoint import CLUSTERS, make_checkpoint, make_encoder
 
@@ -101,7 +102,7 @@ def test_other_checkpoint_refused(checkpoints, tmp_path) -> None:
     out.mkdir()
     (out / "run.json").write_text(json.dumps({"eval_set_version": 1, "robot": "panda", "rig": "ring5",
                                               "hand_half_turn": True, "pseudo_grouping": PSEUDO_GROUPING,
-                                              "methods": {"actaim2": "0" * 64}}))
+                                              "keypose_alternatives": KEYPOSE_ALTERNATIVES, "methods": {"actaim2": "0" * 64}}))
     result = subprocess.run(evaluate("--smoke", "--out", out, "--checkpoint", checkpoints["cgmvae"], "--methods", "actaim2"),
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 2 and "actaim2 results made with " + "0" * 64 in result.stderr
@@ -119,6 +120,18 @@ def test_other_planner_refused(checkpoints, tmp_path, recorded: bool, flags: tup
                                      *flags), capture_output=True, text=True, timeout=300)
     message = (f"hand_half_turn {recorded}, this run has {not recorded}: use another --out "
                f"(or {'--hand-half-turn' if recorded else '--no-hand-half-turn'} to resume it)")
+    assert result.returncode == 2 and message in result.stderr, result.stderr
+
+
+def test_other_number_of_fallbacks_refused(checkpoints, tmp_path) -> None:
+    """Results with and without fallback keyposes never mix: a run made with 2 (run.json), resumed with none."""
+    out = tmp_path / "fallbacks"
+    out.mkdir()
+    (out / "run.json").write_text(json.dumps({"eval_set_version": 1, "robot": "panda", "rig": "ring5", "hand_half_turn": True,
+                                              "pseudo_grouping": PSEUDO_GROUPING, "keypose_alternatives": 2, "methods": {}}))
+    result = subprocess.run(evaluate("--smoke", "--out", out, "--checkpoint", checkpoints["cgmvae"], "--methods", "actaim2",
+                                     "--keypose-alternatives", 0), capture_output=True, text=True, timeout=300)
+    message = "keypose_alternatives 2, this run has 0: use another --out (or --keypose-alternatives 2 to resume it)"
     assert result.returncode == 2 and message in result.stderr, result.stderr
 
 

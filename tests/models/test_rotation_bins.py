@@ -7,7 +7,8 @@ from scipy.spatial.transform import Rotation
 
 from actaim2.geometry import xyzw_to_wxyz
 from actaim2.models.rotation_bins import (HALF_TURN, ROTATION_BINS, SYMMETRY_REFERENCE, bins_to_euler, bins_to_quat,
-                                         canonical_grasp, geodesic_deg, grasp_geodesic_deg, quat_to_bins)
+                                         canonical_grasp, geodesic_deg, grasp_geodesic_deg, quat_to_bins,
+                                         ranked_bins)
 
 BOUND_DEG = 4.4  # sqrt(3) * 2.5 deg = 4.33 deg, the covering radius of 5-degree Euler bins
 
@@ -77,3 +78,22 @@ def test_grasp_geodesic_ignores_the_half_turn_and_nothing_else():
     assert np.allclose(grasp_geodesic_deg(rotations.as_quat(), (rotations * HALF_TURN).as_quat()), 0.0, atol=1e-6)
     tilted = rotations * Rotation.from_euler("x", 30.0, degrees=True)  # about the closing-normal axis: a real change
     assert np.allclose(grasp_geodesic_deg(rotations.as_quat(), tilted.as_quat()), 30.0, atol=1e-6)
+
+
+def test_ranked_bins_start_at_the_argmax_and_keep_grasps_apart():
+    rng = np.random.default_rng(5)
+    logits = rng.normal(0.0, 1.0, (3, ROTATION_BINS))
+    logits[np.arange(3), [10, 30, 50]] += 6.0  # a clear argmax ...
+    logits[np.arange(3), [11, 31, 50]] += 5.5  # ... a neighbour 5 deg off it (the same grasp) ...
+    logits[0, 46] += 5.0  # ... and a roll 180 deg off it
+    triples = ranked_bins(logits, 4, 30.0)
+    assert triples.shape == (4, 3)
+    np.testing.assert_array_equal(triples[0], logits.argmax(axis=-1))
+    quats = bins_to_quat(triples)
+    for i in range(4):
+        for j in range(i):
+            assert grasp_geodesic_deg(quats[i:i + 1], quats[j:j + 1])[0] >= 30.0
+    assert [11, 31, 50] not in triples.tolist()  # 5 deg off the first: skipped
+    assert len(ranked_bins(logits, 1, 30.0)) == 1
+    # a separation no two grasps have: only the argmax
+    assert len(ranked_bins(logits, 4, 181.0)) == 1

@@ -8,6 +8,7 @@ import shutil
 import numpy as np
 import pytest
 
+from actaim2.models.rotation_bins import grasp_geodesic_deg
 from actaim2.perception.config import load_perception_config
 from actaim2.policy.episodes import EpisodeLog, EpisodeRecord, PhaseRecord, largest_change, plan_episodes, summary_table
 from actaim2.policy.inference import PolicyLoadError, PolicyModel
@@ -92,6 +93,23 @@ def test_predict_keypose_decodes_the_trained_keyposes_in_world(model, tiny_check
         assert np.linalg.norm(kp.position - target[:3]) < 0.04, (phase, kp.position)
         assert abs(np.dot(kp.quat_xyzw, target[3:7])) > np.cos(np.radians(8) / 2)
         assert 0.0 < prediction.confidence <= 1.0
+        assert prediction.alternatives == ()  # none unless asked for
+
+
+def test_alternatives_share_the_point_and_gripper_with_rotations_a_grasp_apart(model, tiny_checkpoint):
+    views = scene(tiny_checkpoint, 1)
+    eps = model.sample_mode(views, -1, 3).eps
+    plain = model.predict_keypose(views, eps, 1, False)
+    prediction = model.predict_keypose(views, eps, 1, False, alternatives=3, separation_deg=30.0)
+    assert prediction.keypose.to_json() == plain.keypose.to_json() and prediction.confidence == plain.confidence
+    assert len(prediction.alternatives) == 3
+    quats = [plain.keypose.quat_xyzw] + [k.quat_xyzw for k in prediction.alternatives]
+    for k in prediction.alternatives:
+        assert k.phase == 1 and k.gripper_closed == plain.keypose.gripper_closed
+        np.testing.assert_array_equal(k.position, plain.keypose.position)
+    for i in range(len(quats)):
+        for j in range(i):
+            assert grasp_geodesic_deg(quats[i][None], quats[j][None])[0] >= 30.0 - 1e-6
 
 
 @pytest.mark.parametrize("embedding, phase, reason", [

@@ -1,7 +1,8 @@
 """policy_node over real DDS: /sample_mode and /predict_keypose called from this process, the node in
 its own (started with `ros2 run`), views published here as fusion_node publishes them.
 
-Four nodes run side by side (services remapped apart): the tiny checkpoint; the same with a
+Four nodes run side by side (services remapped apart): the tiny checkpoint (with two fallback
+rotations per keypose); the same with a
 predictor trained on robot-visible views (two views topics); a checkpoint that does not exist;
 one trained under another perception configuration. Every bad request gets success=false with
 the reason, and each node keeps serving.
@@ -42,7 +43,7 @@ def nodes(tiny_checkpoint, tmp_path_factory):
     (split / "policy.json").write_text(json.dumps(meta))
     base = {"checkpoint": str(tiny_checkpoint.stem), "perception_config": str(tiny_checkpoint.perception_yaml)}
     started = {
-        "policy_node": start_policy(logs, "policy_node", base),
+        "policy_node": start_policy(logs, "policy_node", {**base, "keypose_alternatives": 2}),
         "split": start_policy(logs, "split", {**base, "checkpoint": str(split / "policy"), "views_topic": "/split/views",
                                               "predictor_views_topic": "/split/views_with_robot"}),
         "missing": start_policy(logs, "missing", {**base, "checkpoint": "/no/such/policy"}),
@@ -135,6 +136,11 @@ def test_services_answer_from_the_latest_views_stamped_with_them(ros_node, nodes
         assert np.linalg.norm(np.subtract(position, target[:3])) < 0.04 and kp.gripper_closed == bool(target[7])
         q = kp.pose.orientation
         assert np.isclose(np.linalg.norm([q.x, q.y, q.z, q.w]), 1.0) and 0.0 < answer.confidence <= 1.0
+        # keypose_alternatives 2: the same point, stamp and gripper with other rotations, for control_node's fallback
+        assert len(answer.alternatives) == 2
+        for alt in answer.alternatives:
+            assert alt.header == kp.header and alt.phase == phase and alt.gripper_closed == kp.gripper_closed
+            assert alt.pose.position == kp.pose.position and alt.pose.orientation != kp.pose.orientation
 
     # Newer views replace the old ones: the keypose carries their stamp.
     client.publish(views[1], config, stamp=6.5)

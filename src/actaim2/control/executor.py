@@ -13,7 +13,7 @@ from typing import Callable, Protocol, Sequence
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from actaim2.control.planner import KeyposePlanner, PlanningError
+from actaim2.control.planner import KeyposePlanner, Motion, PlanningError
 from actaim2.control.trajectory import JointTrajectory, State
 from actaim2.keypose import GRASP, INIT, MANIPULATE, PHASE_NAMES, REACH, Keypose
 from actaim2.geometry import pose_to_matrix
@@ -60,13 +60,29 @@ class KeyposeRunner:
 
     def run(self, keypose: Keypose, velocity_scaling: float = 1.0, feedback: Feedback | None = None) -> Outcome:
         """Gripper first (open before moving in, close for GRASP), then the arm."""
-        T_goal = pose_to_matrix(keypose.position, keypose.quat_xyzw)
+        return self.run_first([keypose], velocity_scaling, feedback)[0]
+
+    def run_first(self, candidates: Sequence[Keypose], velocity_scaling: float = 1.0,
+                  feedback: Feedback | None = None) -> tuple[Outcome, int]:
+        """Execute the first of ``candidates`` the planner accepts (a policy's keypose, then its
+        fallbacks); (its outcome, its index). Nothing moves for a refused one. When all are
+        refused: the first one's refusal (what was asked for) and index -1."""
+        if not candidates:
+            raise ValueError("no keypose to run")
+        start, refusal = self._start_state(), None
+        for index, keypose in enumerate(candidates):
+            T_goal = pose_to_matrix(keypose.position, keypose.quat_xyzw)
+            try:
+                motion = self.planner.plan(int(keypose.phase), T_goal, bool(keypose.gripper_closed),
+                                           start, velocity_scaling, self.rng)
+            except PlanningError as exc:
+                refusal = refusal or self._outcome(T_goal, False, str(exc), exc.reason)
+                continue
+            return self._execute(motion, feedback), index
+        return refusal, -1
+
+    def _execute(self, motion: Motion, feedback: Feedback | None) -> Outcome:
         report = feedback or (lambda phase, progress: None)
-        try:
-            motion = self.planner.plan(int(keypose.phase), T_goal, bool(keypose.gripper_closed),
-                                       self._start_state(), velocity_scaling, self.rng)
-        except PlanningError as exc:
-            return self._outcome(T_goal, False, str(exc), exc.reason)
         T_goal = motion.T_goal  # the pose planned: with the planner's hand_half_turn, possibly the half-turned one
         report(motion.phase, 0.0)
         if motion.gripper_closed is not None and motion.gripper_closed != self._gripper_closed:

@@ -2,12 +2,15 @@
 
 reset the object (half-open, the task's reset seed) -> robot-hidden pictures O_init and the
 object cloud -> the method begins its sample -> for INIT, REACH, GRASP, MANIPULATE: the method
-gives the keypose (a policy from the pictures taken just before), the keypose runner plans it
-(IK, collision checks with the object cloud as in collection, straight lines) and the simulator
-executes it -> the object's DoFs are read (privileged) and judged (``outcome.py``).
+gives the keypose (a policy from the pictures taken just before, with its fallback rotations when
+asked for), the keypose runner plans it (IK, collision checks with the object cloud as in
+collection, straight lines) and the simulator executes it -> the object's DoFs are read
+(privileged) and judged (``outcome.py``).
 
-A keypose the planner refuses ends the sample there; the DoFs are judged all the same, so a
-part already moved counts. Nothing is retried: one task, one sample.
+A keypose the planner refuses is replaced by its first fallback the planner accepts (the record's
+``candidate``: the index executed per phase, 0 the keypose itself); with none left the sample ends
+there, and the DoFs are judged all the same, so a part already moved counts. Nothing executed is
+retried: one task, one sample.
 """
 from __future__ import annotations
 
@@ -47,15 +50,16 @@ def run_sample(env: SimEnv, planner: KeyposePlanner, executor, cloud_config: Clo
         record.update(group=plan.group, repetition=plan.repetition, **plan.details)
         planner.set_cloud(scene.cloud.points)
         runner = KeyposeRunner(planner, executor, rng)
-        gripper_closed = False
+        gripper_closed, candidates = False, record.setdefault("candidate", [])
         for phase in range(len(PHASE_NAMES)):
-            keypose = plan.next(phase, gripper_closed)
-            result = runner.run(keypose, velocity_scaling)
+            keyposes = plan.next(phase, gripper_closed)
+            result, index = runner.run_first(keyposes, velocity_scaling)
+            candidates.append(index)
             if not result.success:
                 note = f"{PHASE_NAMES[phase]}: {result.reason or 'failed'}: {result.message}"
                 break
             executed += 1
-            gripper_closed = bool(keypose.gripper_closed)
+            gripper_closed = bool(keyposes[index].gripper_closed)
     except NoSample as exc:
         note = f"{NO_SAMPLE}: {exc}"
         record.update(group=exc.group, repetition=exc.repetition)

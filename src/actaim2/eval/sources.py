@@ -14,7 +14,7 @@ A source that cannot produce a sample raises :class:`NoSample`; the sample count
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 import torch
@@ -65,7 +65,7 @@ class Plan:
 
     group: int
     repetition: int
-    next: Callable[[int, bool], Keypose]  # (phase, gripper closed now) -> keypose
+    next: Callable[[int, bool], Sequence[Keypose]]  # (phase, gripper closed now) -> the keypose, then its fallbacks
     details: dict = field(default_factory=dict)  # recorded with the result (cluster used, goal, confidences)
     eps: np.ndarray | None = None  # the interaction mode fed to the predictor (policy rows; not recorded)
 
@@ -85,10 +85,11 @@ def pseudo_group(key: str, slot: int) -> tuple[int, int]:
 
 
 class ServedPolicy:
-    """A policy checkpoint and the view makers of its two models (one when their views agree)."""
+    """A policy checkpoint and the view makers of its two models (one when their views agree);
+    ``alternatives``: fallback keyposes asked for with each one (``PolicyModel.predict_keypose``)."""
 
-    def __init__(self, model: PolicyModel, spec: RobotSpec):
-        self.model = model
+    def __init__(self, model: PolicyModel, spec: RobotSpec, alternatives: int = 0):
+        self.model, self.alternatives = model, alternatives
         makers: dict[str, ViewMaker] = {}
         self.makers = {}
         for role in ROLES:
@@ -98,15 +99,15 @@ class ServedPolicy:
     def views(self, role: str, observed: Observation, env: SimEnv) -> Views:
         return Views(0, self.makers[role].views(observed, env))
 
-    def keyposes(self, scene: Scene, eps: np.ndarray, details: dict) -> Callable[[int, bool], Keypose]:
-        """Predict each phase's keypose from the views observed just before it (robot in the scene)."""
+    def keyposes(self, scene: Scene, eps: np.ndarray, details: dict) -> Callable[[int, bool], Sequence[Keypose]]:
+        """Predict each phase's keypose (and its fallbacks) from the views observed just before it (robot in the scene)."""
         confidences = details.setdefault("confidence", [])
 
-        def next_keypose(phase: int, gripper_closed: bool) -> Keypose:
+        def next_keypose(phase: int, gripper_closed: bool) -> Sequence[Keypose]:
             views = self.views("predictor", pictures(scene.env, with_robot=True), scene.env)
-            prediction = self.model.predict_keypose(views, eps, phase, gripper_closed)
+            prediction = self.model.predict_keypose(views, eps, phase, gripper_closed, self.alternatives)
             confidences.append(round(prediction.confidence, 4))
-            return prediction.keypose
+            return (prediction.keypose, *prediction.alternatives)
 
         return next_keypose
 
@@ -154,8 +155,8 @@ def goal_pictures(env: SimEnv, info: ResetInfo, dof: str, direction: int) -> Obs
 class GoalSource(ServedPolicy):
     """Goal-RVT: goal g = slot mod (number of feasible goals), so the goals are visited in turn."""
 
-    def __init__(self, model: PolicyModel, spec: RobotSpec, encoder):
-        super().__init__(model, spec)
+    def __init__(self, model: PolicyModel, spec: RobotSpec, encoder, alternatives: int = 0):
+        super().__init__(model, spec, alternatives)
         if model.selector is None:
             raise ValueError("the Goal-RVT checkpoint carries no selector, hence no z statistics to standardise the goal's z")
         self.encoder = encoder
@@ -193,5 +194,5 @@ class SamplerSource:
                 raise NoSample("sampler found no action", group, repetition)
             if ik_reachable(self.screen, self.home, action, scene.rng):
                 keyposes = action.keyposes()
-                return Plan(group, repetition, lambda phase, closed: keyposes[phase])
+                return Plan(group, repetition, lambda phase, closed: keyposes[phase : phase + 1])
         raise NoSample("no sampled action passed the IK check", group, repetition)

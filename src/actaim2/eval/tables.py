@@ -221,10 +221,12 @@ def stop_of(record: dict) -> tuple[str, str]:
 
 def stops_table(records: Sequence[dict], methods: list[str], reasons: int = 3) -> list[str]:
     """Per row, over every split: the share of samples ended at each phase by a refused keypose (or with no
-    sample), the share that ran all four phases and those samples' SSR, and the most frequent refusals."""
+    sample), the share that ran all four phases and those samples' SSR, the share that executed a fallback
+    keypose in some phase (the record's ``candidate``), and the most frequent refusals."""
     where = [NO_SAMPLE, *PHASE_NAMES]
     lines = ["| method | samples | " + " | ".join(f"stopped at {w}" if w != NO_SAMPLE else w for w in where)
-             + " | all four phases ran | SSR of those (%) | most frequent refusals |", "|---" * (len(where) + 5) + "|"]
+             + " | all four phases ran | SSR of those (%) | ran a fallback | most frequent refusals |",
+             "|---" * (len(where) + 6) + "|"]
     for m in methods:
         rows = [r for r in records if r["method"] == m]
         if not rows:
@@ -239,6 +241,7 @@ def stops_table(records: Sequence[dict], methods: list[str], reasons: int = 3) -
         top = sorted(counts.items(), key=lambda kv: -kv[1])[:reasons]
         lines.append(f"| {METHODS[m].title} | {len(rows)} | " + " | ".join(f"{100 * share[w]:.1f} %" for w in where)
                      + f" | {100 * len(ran) / len(rows):.1f} % | {Rate(sum(bool(r['success']) for r in ran), len(ran)).cell()} | "
+                     + f"{100 * sum(max(r.get('candidate', [0]), default=0) > 0 for r in rows) / len(rows):.1f} % | "
                      + ", ".join(f"{phase} {why} {100 * n / len(rows):.1f} %" for (phase, why), n in top) + " |")
     return lines
 
@@ -274,7 +277,8 @@ def report(records: Sequence[dict], methods: list[str], header: list[str]) -> st
     lines += cluster_table(records, done)
     lines += ["", "## Acceptance checks (issue 13)", ""] + acceptance_table(records)
     lines += ["", "## Where samples stopped (all splits)", "",
-              "A keypose the planner refuses ends its sample (docs/evaluation.md); the rest ran all four phases."]
+              "A keypose the planner refuses, with every fallback given with it, ends its sample (docs/evaluation.md); "
+              "the rest ran all four phases."]
     lines += [""] + stops_table(records, done)
     lines += ["", "## The paper's figures, for comparison", ""] + paper_table()
     lines += ["", "## Methods", ""] + [f"- **{METHODS[m].title}**: {METHODS[m].about}" for m in done]

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 from actaim2.control.planner import POLICY_PLANNER
+from actaim2.policy.inference import KEYPOSE_ALTERNATIVES
 from actaim2.data.collect import PRECHECK_IK_RESTARTS, CollectConfig
 
 _COLLECT_DEFAULTS = {f.name: f.default for f in dataclasses.fields(CollectConfig)}
@@ -32,6 +33,7 @@ class WorkerSetup:
     max_samples: int = _COLLECT_DEFAULTS["max_samples"]
     device: str = "cpu"
     hand_half_turn: bool = POLICY_PLANNER.hand_half_turn  # PlannerOptions.hand_half_turn for every row's keyposes
+    keypose_alternatives: int = KEYPOSE_ALTERNATIVES  # fallback rotations of each policy keypose (policy rows)
 
 
 class EvalWorker:
@@ -80,8 +82,8 @@ class EvalWorker:
         if method == "goal_rvt":
             from actaim2.data.encoder import ImageEncoder
 
-            return GoalSource(model, spec, ImageEncoder.load(s.encoder))
-        return PolicySource(model, spec)
+            return GoalSource(model, spec, ImageEncoder.load(s.encoder), s.keypose_alternatives)
+        return PolicySource(model, spec, s.keypose_alternatives)
 
     def run(self, task) -> dict:
         """The task's result record (an EvalTask's sample, or a GroundingRun's rewards); {key, error} when

@@ -128,3 +128,28 @@ def geodesic_deg(q_a: np.ndarray, q_b: np.ndarray) -> np.ndarray:
     a = Rotation.from_quat(np.asarray(q_a, dtype=np.float64).reshape(-1, 4))
     b = Rotation.from_quat(np.asarray(q_b, dtype=np.float64).reshape(-1, 4))
     return np.degrees((a.inv() * b).magnitude())
+
+
+def ranked_bins(logits: np.ndarray, count: int, separation_deg: float, per_axis: int = 8) -> np.ndarray:
+    """(3, bins) Euler-bin logits -> (<= count, 3) bin triples, likeliest first, as grasps apart.
+
+    A triple's score is the sum of its three log-probabilities (the head's axes are independent
+    outputs); triples are drawn from the ``per_axis`` likeliest bins of each axis and kept greedily
+    when at least ``separation_deg`` from every triple kept before, up to the hand's half turn
+    (:func:`grasp_geodesic_deg`): neighbouring bins 5 deg apart are the same grasp to a planner.
+    The first triple is the argmax of each axis, the one :func:`actaim2.models.predictor.decode_action` decodes.
+    """
+    logits = np.asarray(logits, dtype=np.float64)
+    log_probs = logits - np.logaddexp.reduce(logits, axis=-1, keepdims=True)
+    top = np.argsort(-log_probs, axis=-1, kind="stable")[:, :per_axis]  # (3, per_axis)
+    triples = np.array(list(itertools.product(*top)), dtype=np.int64)  # (per_axis^3, 3), argmax triple first
+    scores = log_probs[np.arange(3), triples].sum(axis=1)
+    triples = triples[np.argsort(-scores, kind="stable")]
+    quats = bins_to_quat(triples, logits.shape[-1])
+    kept: list[int] = []
+    for i in range(len(triples)):
+        if len(kept) == count:
+            break
+        if not kept or grasp_geodesic_deg(np.repeat(quats[i : i + 1], len(kept), axis=0), quats[kept]).min() >= separation_deg:
+            kept.append(i)
+    return triples[kept]

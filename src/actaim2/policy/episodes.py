@@ -68,6 +68,7 @@ class PhaseRecord:
     message: str  # ExecuteKeypose result message
     position_error: float = float("nan")  # m
     orientation_error: float = float("nan")  # rad
+    candidate: int = 0  # the one executed (``keypose``): 0 the prediction, i its i-th fallback; -1 none
 
 
 @dataclass

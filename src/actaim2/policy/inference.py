@@ -35,6 +35,7 @@ import torch
 
 from actaim2.keypose import Keypose
 from actaim2.models.predictor import decode_action, proprio_features
+from actaim2.models.rotation_bins import bins_to_quat, ranked_bins
 from actaim2.models.view_geometry import CubePlacement
 from actaim2.perception.config import PerceptionConfig
 from actaim2.policy.requests import RequestError, check_cluster, check_embedding, check_phase
@@ -43,6 +44,10 @@ from actaim2.train import checkpoint
 from actaim2.train.distributed import choose_device
 
 ROLES = ("selector", "predictor")
+# Fallback keyposes /predict_keypose gives with each keypose by default (policy_node, the evaluation).
+KEYPOSE_ALTERNATIVES = 0
+# Fallback rotations are this far apart (up to the hand's half turn): closer ones meet the same obstacles.
+ALTERNATIVE_SEPARATION_DEG = 30.0
 
 
 class PolicyLoadError(RuntimeError):
@@ -60,6 +65,9 @@ class ModeSample:
 class KeyposePrediction:
     keypose: Keypose
     confidence: float
+    # The same point and gripper with the next likeliest rotations (``rotation_bins.ranked_bins``),
+    # for a planner to fall back on when it refuses ``keypose`` (``KeyposeRunner.run_first``).
+    alternatives: tuple[Keypose, ...] = ()
 
 
 class PolicyModel:
@@ -137,7 +145,10 @@ class PolicyModel:
                           result.cluster_probabilities[0].float().cpu().numpy())
 
     @torch.no_grad()
-    def predict_keypose(self, views: Views, eps: np.ndarray | list[float], phase: int, gripper_closed: bool) -> KeyposePrediction:
+    def predict_keypose(self, views: Views, eps: np.ndarray | list[float], phase: int, gripper_closed: bool,
+                        alternatives: int = 0, separation_deg: float = ALTERNATIVE_SEPARATION_DEG) -> KeyposePrediction:
+        """The keypose, its confidence and up to ``alternatives`` fallbacks whose rotations lie
+        ``separation_deg`` from it and from each other."""
         if self.predictor is None:
             raise RequestError(f"{self.stem} holds no action predictor: /predict_keypose is unavailable")
         eps = check_embedding(eps, self.embedding_dim)
@@ -151,6 +162,11 @@ class PolicyModel:
         if out.depth is not None:
             heat = heat * torch.softmax(out.depth[0].float(), dim=-1).amax()
         rotation = torch.softmax(out.rotation[0].float(), dim=-1).amax(dim=-1).prod()
-        keypose = Keypose(phase, action.position[0].double().cpu().numpy(), action.quat_xyzw[0].double().cpu().numpy(),
-                          bool(action.gripper_closed[0]))
-        return KeyposePrediction(keypose, float(heat * rotation))
+        position, closed = action.position[0].double().cpu().numpy(), bool(action.gripper_closed[0])
+        keypose = Keypose(phase, position, action.quat_xyzw[0].double().cpu().numpy(), closed)
+        others = ()
+        if alternatives > 0:
+            triples = ranked_bins(out.rotation[0].float().cpu().numpy(), alternatives + 1, separation_deg)[1:]
+            others = tuple(Keypose(phase, position, q.astype(np.float64), closed)
+                           for q in bins_to_quat(triples, out.rotation.shape[-1]))
+        return KeyposePrediction(keypose, float(heat * rotation), others)
