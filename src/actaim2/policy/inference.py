@@ -44,8 +44,9 @@ from actaim2.train import checkpoint
 from actaim2.train.distributed import choose_device
 
 ROLES = ("selector", "predictor")
-# Fallback keyposes /predict_keypose gives with each keypose by default (policy_node, the evaluation).
-KEYPOSE_ALTERNATIVES = 0
+# Fallback keyposes /predict_keypose gives with each keypose by default (policy_node, the evaluation;
+# measured in docs/evaluation.md, "Fallback rotations").
+KEYPOSE_ALTERNATIVES = 4
 # Fallback rotations are this far apart (up to the hand's half turn): closer ones meet the same obstacles.
 ALTERNATIVE_SEPARATION_DEG = 30.0
 
