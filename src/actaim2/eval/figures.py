@@ -98,14 +98,14 @@ class _TracingSource:
             if self.phases:
                 self.phases[-1]["reached"] = self.env.tcp_pose()[:3, 3].copy()
             views = self.source.views("predictor", pictures(self.env, with_robot=True), self.env)
-            keypose = inner(phase, gripper_closed)
+            keyposes = inner(phase, gripper_closed)  # the keypose, then its fallbacks (the same point)
             eps = torch.from_numpy(np.asarray(plan.eps, np.float32))[None]
             with torch.no_grad():
                 proprio = proprio_features(torch.tensor([gripper_closed]), torch.tensor([phase]))
                 out = model.predictor(torch.from_numpy(views.data)[None].to(model.device), eps.to(model.device), proprio.to(model.device))
             heat = torch.softmax(out.heatmaps[0].flatten(1).float(), -1).reshape(out.heatmaps.shape[1:]).cpu().numpy()
-            self.phases.append({"views": views.data, "heatmaps": heat, "predicted": np.asarray(keypose.position), "reached": None})
-            return keypose
+            self.phases.append({"views": views.data, "heatmaps": heat, "predicted": np.asarray(keyposes[0].position), "reached": None})
+            return keyposes
 
         plan.next = next_keypose
         return plan
