@@ -52,6 +52,7 @@ class NodeProcess:
         import yaml
 
         self.name = f"{package}/{executable}"
+        self.params = dict(params or {})
         cmd = ["ros2", "run", package, executable, *args, "--ros-args"]
         if params:
             params_file = log_dir / f"{executable}_params.yaml"

@@ -28,7 +28,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from actaim2.perception.config import load_perception_config
-from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, ROLES, PolicyLoadError, PolicyModel
+from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, MODE_GUIDANCE, ROLES, PolicyLoadError, PolicyModel
 from actaim2.policy.locate import COMMITTED, installed_folders, resolve_checkpoint
 from actaim2.policy.requests import NO_VIEWS, RequestError, check_cluster, check_embedding, check_fresh, check_phase
 from actaim2.policy.views import Views, accept_views
@@ -52,6 +52,9 @@ PARAMETERS = {
     "keypose_alternatives": (KEYPOSE_ALTERNATIVES, "fallbacks answered with each keypose: its point with the next likeliest "
                                                    "rotations, 30 deg apart, which control_node plans in turn when it refuses "
                                                    "the keypose (0 = none)"),
+    "mode_guidance": (MODE_GUIDANCE, "weight w of the mode guidance of the predicted point: each view's heatmap log-probabilities "
+                                     "l(eps) + w (l(eps) - l(0)), l(0) the predictor fed the mean mode (classifier-free "
+                                     "guidance); 0 = the plain predictor, one forward pass"),
     "predictor_views_topic": ("", "views for the action predictor when it was trained with the other robot-filter "
                                   "setting than the selector (fusion_node's alternate_views_topic); empty = views_topic"),
 }
@@ -73,6 +76,9 @@ class PolicyNode(Node):
         self._alternatives = int(p["keypose_alternatives"])
         if self._alternatives < 0:
             raise ValueError(f"keypose_alternatives {self._alternatives} is negative")
+        self._guidance = float(p["mode_guidance"])
+        if not self._guidance >= 0.0:
+            raise ValueError(f"mode_guidance {self._guidance} is not a weight >= 0")
         self._model: PolicyModel | None = None
         self._load_error = ""
         try:
@@ -161,7 +167,8 @@ class PolicyNode(Node):
             check_phase(request.phase)
             views = self._views_for("predictor")
             check_fresh(views.stamp_ns, stamp_ns(request.not_before))
-            prediction = model.predict_keypose(views, eps, request.phase, request.gripper_closed, self._alternatives)
+            prediction = model.predict_keypose(views, eps, request.phase, request.gripper_closed, self._alternatives,
+                                               guidance=self._guidance)
         except RequestError as exc:
             return self._refuse(response, str(exc))
         except Exception as exc:  # noqa: BLE001 - answered and logged: the node must keep serving

@@ -3,7 +3,7 @@ its own (started with `ros2 run`), views published here as fusion_node publishes
 
 Four nodes run side by side (services remapped apart): the tiny checkpoint (with two fallback
 rotations per keypose); the same with a
-predictor trained on robot-visible views (two views topics); a checkpoint that does not exist;
+predictor trained on robot-visible views (two views topics) and mode guidance; a checkpoint that does not exist;
 one trained under another perception configuration. Every bad request gets success=false with
 the reason, and each node keeps serving.
 """
@@ -45,7 +45,7 @@ def nodes(tiny_checkpoint, tmp_path_factory):
     started = {
         "policy_node": start_policy(logs, "policy_node", {**base, "keypose_alternatives": 2}),
         "split": start_policy(logs, "split", {**base, "checkpoint": str(split / "policy"), "views_topic": "/split/views",
-                                              "predictor_views_topic": "/split/views_with_robot"}),
+                                              "predictor_views_topic": "/split/views_with_robot", "mode_guidance": 2.0}),
         "missing": start_policy(logs, "missing", {**base, "checkpoint": "/no/such/policy"}),
         "mismatch": start_policy(logs, "mismatch", {**base, "perception_config": "ring5"}),
     }
@@ -200,6 +200,18 @@ def test_selector_and_predictor_each_get_views_with_their_robot_filter_setting(r
     assert wait_for(lambda: client.sample_mode().success and client.predict_keypose(np.zeros(20)).success, 20.0)
     assert seconds(client.sample_mode().observation_stamp) == 20.0
     assert seconds(client.predict_keypose(np.zeros(20)).keypose.header.stamp) == 21.0
+    # mode_guidance 2.0: the node answers the library's guided prediction, which is not the plain one
+    from actaim2.policy.inference import PolicyModel
+    from actaim2.policy.views import Views
+
+    library = PolicyModel.load(Path(nodes["split"].params["checkpoint"]), config, "cpu")
+    eps = np.asarray(client.sample_mode(seed=3).embedding, np.float32)
+    answer = client.predict_keypose(eps, phase=1)
+    served = Views(0, views[1].astype(np.float32))
+    guided, plain = (library.predict_keypose(served, eps, 1, False, guidance=w) for w in (2.0, 0.0))
+    kp = answer.keypose.pose.position
+    assert np.allclose([kp.x, kp.y, kp.z], guided.keypose.position, atol=1e-5)
+    assert np.isclose(answer.confidence, guided.confidence, rtol=1e-4) and not np.isclose(guided.confidence, plain.confidence)
     # Robot-hidden views on the predictor's topic are not what it was trained on.
     client.publish(views[0], config, stamp=22.0, topic="/split/views_with_robot")
     assert wait_for(lambda: "were refused" in client.predict_keypose(np.zeros(20)).message, 20.0)

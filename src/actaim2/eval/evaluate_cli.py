@@ -68,6 +68,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--keypose-alternatives", type=int, default=None,
                         help="fallback rotations a policy row gives with each keypose, executed in turn when the planner "
                              "refuses it (default as policy_node); recorded in run.json")
+    parser.add_argument("--mode-guidance", type=float, default=None, metavar="W",
+                        help="mode guidance weight of a policy row's translation (models/mode_guidance.py; default as "
+                             "policy_node, 0 = off); recorded in run.json")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -144,14 +147,17 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.eval.tasks import plan_tasks
     from actaim2.eval.worker import EvalWorker, WorkerSetup
     from actaim2.perception.config import load_perception_config
-    from actaim2.policy.inference import KEYPOSE_ALTERNATIVES
+    from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, MODE_GUIDANCE
 
     preset = _preset(args)
     half_turn = POLICY_PLANNER.hand_half_turn if args.hand_half_turn is None else args.hand_half_turn
     alternatives = KEYPOSE_ALTERNATIVES if args.keypose_alternatives is None else args.keypose_alternatives
+    guidance = MODE_GUIDANCE if args.mode_guidance is None else args.mode_guidance
     try:
         if alternatives < 0:
             raise ValueError(f"--keypose-alternatives {alternatives} is negative")
+        if not guidance >= 0.0:
+            raise ValueError(f"--mode-guidance {guidance} is not a weight >= 0")
         stems, methods = _methods(args)
         described = {m: describe(stems[m]) for m in methods if m in stems}
         for m in (m for m in ABLATIONS if m in described):
@@ -174,7 +180,7 @@ def main(args: argparse.Namespace) -> int:
         gmm = data_collection_samplers(args.data) if "data_collection" in methods else None
         encoder = _encoder(args, stems["goal_rvt"]) if "goal_rvt" in methods else None
         run = {"eval_set_version": EVAL_SET_VERSION, "robot": args.robot, "rig": perception.rig, "hand_half_turn": half_turn,
-               "pseudo_grouping": PSEUDO_GROUPING, "keypose_alternatives": alternatives,
+               "pseudo_grouping": PSEUDO_GROUPING, "keypose_alternatives": alternatives, "mode_guidance": guidance,
                "methods": {m: described.get(m, {}).get("weights_sha256") or ("dataset " + _data_digest(args.data)
                                                                           if m == "data_collection" else m) for m in methods}}
         check_run(args.out, run)
@@ -183,7 +189,7 @@ def main(args: argparse.Namespace) -> int:
         return 2
     setup = WorkerSetup(args.robot, perception.rig, render_path, tuple(perception.center), float(perception.half_extent),
                         {m: str(stems[m]) for m in described}, str(encoder) if encoder else None, gmm,
-                        hand_half_turn=half_turn, keypose_alternatives=alternatives)
+                        hand_half_turn=half_turn, keypose_alternatives=alternatives, mode_guidance=guidance)
     if args.grounding:
         return _grounding(args, setup, methods)
     clusters = {m: described[m]["clusters"] if m in described and m != "goal_rvt" else 0 for m in methods}

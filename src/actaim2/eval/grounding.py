@@ -100,7 +100,7 @@ class _ChosenEps(ServedPolicy):
     """A policy source whose eps comes from the search: a bandit's cluster or a CEM vector decoded with the scene."""
 
     def __init__(self, served: ServedPolicy):
-        self.model, self.makers, self.alternatives = served.model, served.makers, served.alternatives
+        self.model, self.makers, self.alternatives, self.guidance = served.model, served.makers, served.alternatives, served.guidance
         self.arm: int | None = None
         self.vector: np.ndarray | None = None
 

@@ -86,10 +86,11 @@ def pseudo_group(key: str, slot: int) -> tuple[int, int]:
 
 class ServedPolicy:
     """A policy checkpoint and the view makers of its two models (one when their views agree);
-    ``alternatives``: fallback keyposes asked for with each one (``PolicyModel.predict_keypose``)."""
+    ``alternatives``: fallback keyposes asked for with each one, ``guidance``: the mode guidance weight
+    (both ``PolicyModel.predict_keypose``'s)."""
 
-    def __init__(self, model: PolicyModel, spec: RobotSpec, alternatives: int = 0):
-        self.model, self.alternatives = model, alternatives
+    def __init__(self, model: PolicyModel, spec: RobotSpec, alternatives: int = 0, guidance: float = 0.0):
+        self.model, self.alternatives, self.guidance = model, alternatives, guidance
         makers: dict[str, ViewMaker] = {}
         self.makers = {}
         for role in ROLES:
@@ -105,7 +106,8 @@ class ServedPolicy:
 
         def next_keypose(phase: int, gripper_closed: bool) -> Sequence[Keypose]:
             views = self.views("predictor", pictures(scene.env, with_robot=True), scene.env)
-            prediction = self.model.predict_keypose(views, eps, phase, gripper_closed, self.alternatives)
+            prediction = self.model.predict_keypose(views, eps, phase, gripper_closed, self.alternatives,
+                                                    guidance=self.guidance)
             confidences.append(round(prediction.confidence, 4))
             return (prediction.keypose, *prediction.alternatives)
 
@@ -155,8 +157,8 @@ def goal_pictures(env: SimEnv, info: ResetInfo, dof: str, direction: int) -> Obs
 class GoalSource(ServedPolicy):
     """Goal-RVT: goal g = slot mod (number of feasible goals), so the goals are visited in turn."""
 
-    def __init__(self, model: PolicyModel, spec: RobotSpec, encoder, alternatives: int = 0):
-        super().__init__(model, spec, alternatives)
+    def __init__(self, model: PolicyModel, spec: RobotSpec, encoder, alternatives: int = 0, guidance: float = 0.0):
+        super().__init__(model, spec, alternatives, guidance)
         if model.selector is None:
             raise ValueError("the Goal-RVT checkpoint carries no selector, hence no z statistics to standardise the goal's z")
         self.encoder = encoder

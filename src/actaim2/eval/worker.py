@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 from actaim2.control.planner import POLICY_PLANNER
-from actaim2.policy.inference import KEYPOSE_ALTERNATIVES
+from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, MODE_GUIDANCE
 from actaim2.data.collect import PRECHECK_IK_RESTARTS, CollectConfig
 
 _COLLECT_DEFAULTS = {f.name: f.default for f in dataclasses.fields(CollectConfig)}
@@ -34,6 +34,7 @@ class WorkerSetup:
     device: str = "cpu"
     hand_half_turn: bool = POLICY_PLANNER.hand_half_turn  # PlannerOptions.hand_half_turn for every row's keyposes
     keypose_alternatives: int = KEYPOSE_ALTERNATIVES  # fallback rotations of each policy keypose (policy rows)
+    mode_guidance: float = MODE_GUIDANCE  # models/mode_guidance.py's weight for every policy keypose (policy rows)
 
 
 class EvalWorker:
@@ -82,8 +83,8 @@ class EvalWorker:
         if method == "goal_rvt":
             from actaim2.data.encoder import ImageEncoder
 
-            return GoalSource(model, spec, ImageEncoder.load(s.encoder), s.keypose_alternatives)
-        return PolicySource(model, spec, s.keypose_alternatives)
+            return GoalSource(model, spec, ImageEncoder.load(s.encoder), s.keypose_alternatives, s.mode_guidance)
+        return PolicySource(model, spec, s.keypose_alternatives, s.mode_guidance)
 
     def run(self, task) -> dict:
         """The task's result record (an EvalTask's sample, or a GroundingRun's rewards); {key, error} when

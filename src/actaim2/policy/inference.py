@@ -34,6 +34,7 @@ import numpy as np
 import torch
 
 from actaim2.keypose import Keypose
+from actaim2.models.mode_guidance import guide, with_reference
 from actaim2.models.predictor import decode_action, proprio_features
 from actaim2.models.rotation_bins import bins_to_quat, ranked_bins
 from actaim2.models.view_geometry import CubePlacement
@@ -47,6 +48,9 @@ ROLES = ("selector", "predictor")
 # Fallback keyposes /predict_keypose gives with each keypose by default (policy_node, the evaluation;
 # measured in docs/evaluation.md, "Fallback rotations").
 KEYPOSE_ALTERNATIVES = 4
+# Mode guidance weight /predict_keypose applies by default (policy_node, the evaluation;
+# models/mode_guidance.py; 0 = off until measured in docs/evaluation.md, "Mode guidance").
+MODE_GUIDANCE = 0.0
 # Fallback rotations are this far apart (up to the hand's half turn): closer ones meet the same obstacles.
 ALTERNATIVE_SEPARATION_DEG = 30.0
 
@@ -147,16 +151,23 @@ class PolicyModel:
 
     @torch.no_grad()
     def predict_keypose(self, views: Views, eps: np.ndarray | list[float], phase: int, gripper_closed: bool,
-                        alternatives: int = 0, separation_deg: float = ALTERNATIVE_SEPARATION_DEG) -> KeyposePrediction:
+                        alternatives: int = 0, separation_deg: float = ALTERNATIVE_SEPARATION_DEG,
+                        guidance: float = 0.0) -> KeyposePrediction:
         """The keypose, its confidence and up to ``alternatives`` fallbacks whose rotations lie
-        ``separation_deg`` from it and from each other."""
+        ``separation_deg`` from it and from each other. ``guidance``: the mode guidance weight of the
+        translation (:mod:`actaim2.models.mode_guidance`; 0 = the plain predictor)."""
         if self.predictor is None:
             raise RequestError(f"{self.stem} holds no action predictor: /predict_keypose is unavailable")
         eps = check_embedding(eps, self.embedding_dim)
         phase = check_phase(phase)
         proprio = proprio_features(torch.tensor([bool(gripper_closed)], device=self.device),
                                    torch.tensor([phase], device=self.device))
-        out = self.predictor(self._batch(views), torch.from_numpy(eps)[None].to(self.device), proprio)
+        eps_rows = torch.from_numpy(eps)[None].to(self.device)
+        if guidance:  # a negative weight reaches guide(), which refuses it
+            out = guide(self.predictor(self._batch(views).expand(2, -1, -1, -1, -1), with_reference(eps_rows),
+                                       proprio.expand(2, -1)), guidance)
+        else:
+            out = self.predictor(self._batch(views), eps_rows, proprio)
         action = decode_action(out, self.placement, self.predictor.config.view_index,
                                self.predictor.config.decode_sigma_px)
         heat = torch.softmax(out.heatmaps[0].flatten(1).float(), dim=-1).amax(dim=-1).mean()
