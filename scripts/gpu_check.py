@@ -11,8 +11,9 @@ What it does, printing one JSON summary at the end:
      autocast, checks losses and gradients are finite and that the bf16 loss agrees with the fp32
      loss;
   2. predictor training throughput (samples/s) at batch 64, and inference latency p50/p99 at
-     batch 1 (forward + coarse-to-fine 3-D decode); selector training throughput and sample
-     latency;
+     batch 1 (forward + coarse-to-fine 3-D decode), with mode guidance too (models/mode_guidance.py,
+     its decode on the device checked against the CPU's on the same logits); selector training
+     throughput and sample latency;
   3. DDP: with >= 2 GPUs, two NCCL ranks on half-batches vs one process on the full batch
      (gradient equality); with one GPU, a 1-rank NCCL process group and an all-reduce.
 The project venv is not needed: ``src/`` is put on sys.path. Modules the check does not use
@@ -76,6 +77,7 @@ from actaim2.models.obs_encoder import ObsEncoderConfig  # noqa: E402
 from actaim2.models.predictor import ActionPredictor, PredictorConfig, proprio_features  # noqa: E402
 from actaim2.models.registry import build_selector  # noqa: E402
 from actaim2.models.selector_base import SelectorConfig  # noqa: E402
+from actaim2.models.mode_guidance import guide, with_reference  # noqa: E402
 from actaim2.models.view_geometry import decode_points, heatmap_targets  # noqa: E402
 from actaim2.train.action_loss import ActionTargets, action_loss  # noqa: E402
 from actaim2.train.config import ElboWeights  # noqa: E402
@@ -149,6 +151,20 @@ def check_predictor(name: str, config: PredictorConfig, dev: torch.device, batch
             decode_points(model(*one).heatmaps.float())
 
     infer_ms = _timed(infer, max(repeats * 3, 10), 5, dev)
+
+    def guided_out():  # mode guidance: the eps row and the mean-mode row in one batch of 2
+        return model(one[0].expand(2, -1, -1, -1, -1), with_reference(one[1]), one[2].expand(2, -1))
+
+    def infer_guided():
+        with torch.inference_mode(), torch.autocast(dev.type, dtype=torch.bfloat16):
+            decode_points(guide(guided_out(), 2.0).heatmaps)
+
+    guided_ms = _timed(infer_guided, max(repeats * 3, 10), 5, dev)
+    with torch.inference_mode():  # the guidance and decode on the device against the same logits on the CPU
+        raw = guided_out()
+        on_device = decode_points(guide(raw, 2.0).heatmaps)
+        on_cpu = decode_points(guide(type(raw)(*(None if t is None else t.cpu() for t in raw)), 2.0).heatmaps)
+    guided_cell_error = float((on_device.cpu() - on_cpu).abs().max()) * config.image_size / 2  # cube [-1, 1] -> cells
     return {
         "model": name, "params_M": round(sum(p.numel() for p in model.parameters()) / 1e6, 3),
         "loss_bf16_train": round(loss_bf16.item(), 4), "loss_fp32_eval": round(loss_fp32, 4),
@@ -159,6 +175,8 @@ def check_predictor(name: str, config: PredictorConfig, dev: torch.device, batch
         "train_step_p50_ms": round(float(np.median(train_ms)), 2),
         "infer_b1_p50_ms": round(float(np.percentile(infer_ms, 50)), 3),
         "infer_b1_p99_ms": round(float(np.percentile(infer_ms, 99)), 3),
+        "infer_guided_b1_p50_ms": round(float(np.percentile(guided_ms, 50)), 3),
+        "guided_decode_device_vs_cpu_cells": round(guided_cell_error, 3),
     }
 
 
@@ -287,9 +305,10 @@ def main() -> int:
         summary["ddp"] = check_ddp(dev, tmp, args.cpu)
     summary["seconds"] = round(time.monotonic() - start, 1)
     finite = all(r["grads_finite"] for r in summary["predictor"] + summary["selector"])
+    guided = all(r["guided_decode_device_vs_cpu_cells"] <= 1.0 for r in summary["predictor"])
     agree = all(r["bf16_fp32_rel_diff"] < 0.05 for r in summary["predictor"] + summary["selector"])
     whitened = all(r["eps_whitening_max_error"] < 1e-3 for r in summary["selector"])
-    summary["ok"] = finite and agree and whitened and summary.get("ddp", {"ok": True})["ok"]
+    summary["ok"] = finite and agree and whitened and guided and summary.get("ddp", {"ok": True})["ok"]
     print(json.dumps(summary, indent=2))
     return 0 if summary["ok"] else 1
 

@@ -6,7 +6,8 @@
 
 Measurements (issue 11, targets on 2 cores):
   * forward + decode, batch 1: eval mode, views -> heatmaps, rotation and gripper logits -> the
-    keypose, the coarse-to-fine 3-D decode included (p50 <= 20 ms);
+    keypose, the coarse-to-fine 3-D decode included (p50 <= 20 ms); the same with mode guidance
+    (:mod:`actaim2.models.mode_guidance`: a second row fed the mean mode, in the same batch);
   * training step, batch 8: targets (heatmaps, rotation bins) + forward + L_action + backward +
     AdamW step (p50 <= 300 ms); data loading and augmentation are not included;
   * augmentation, per sample: views read back into a cloud, moved and re-rendered
@@ -104,6 +105,7 @@ def bench_predictor(
     """
     from actaim2.data.encoder import AE_LATENT, AUTOENCODER_SPEC
     from actaim2.models.augment import augment
+    from actaim2.models.mode_guidance import guide, with_reference
     from actaim2.models.predictor import ActionPredictor, PredictorConfig, decode_action, proprio_features
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.perception.fusion import FusionConfig
@@ -138,6 +140,14 @@ def bench_predictor(
     wall, cpu = time_calls(forward_decode, repeats, warmup=5, device=dev)
     target = TARGET_FORWARD_P50_MS if dev.type == "cpu" else None  # the targets are for 2 CPU cores
     rows.append(result_row(name, "forward + 3-D decode", FORWARD_BATCH, params, wall, cpu, target))
+
+    def guided_decode():  # mode guidance: the eps row and the mean-mode row in one batch of 2
+        with torch.inference_mode(), autocast:
+            out = model(views.expand(2, -1, -1, -1, -1), with_reference(eps), proprio.expand(2, -1))
+            decode_action(guide(out, 2.0), placement, config.view_index, config.decode_sigma_px)
+
+    wall, cpu = time_calls(guided_decode, repeats, warmup=5, device=dev)
+    rows.append(result_row(name, "forward + mode guidance + 3-D decode", FORWARD_BATCH, params, wall, cpu, target))
 
     model.train()
     optimiser = torch.optim.AdamW(model.parameters(), lr=1e-4)
