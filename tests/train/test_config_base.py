@@ -57,7 +57,8 @@ def test_the_third_steps_control_is_structured_demos_but_for_ten_epochs():
     base = load_config("structured_demos")
     config = load_config("third_step_control")
     assert config == dataclasses.replace(base, predictor_phase=dataclasses.replace(base.predictor_phase, epochs=10))
-    for step in ("point_pooling", "rotation_smoothing", "film_conditioning", "eps_noise_off", "mode_query", "mode_contrast"):
+    for step in ("point_pooling", "rotation_smoothing", "film_conditioning", "eps_noise_off", "mode_query", "mode_contrast",
+                 "augment_off"):
         assert load_config(step).predictor_phase == config.predictor_phase
 
 
@@ -65,6 +66,12 @@ def test_eps_noise_off_is_the_third_steps_control_but_for_the_noise():
     control, step = load_config("third_step_control"), load_config("eps_noise_off")
     assert control.eps_noise == 0.5 and step.eps_noise == 0.0
     assert dataclasses.replace(step, eps_noise=control.eps_noise) == control
+
+
+def test_augment_off_is_the_third_steps_control_but_for_the_augmentation():
+    control, step = load_config("third_step_control"), load_config("augment_off")
+    assert control.augment and not step.augment
+    assert dataclasses.replace(step, augment=True) == control
 
 
 def test_the_mode_contrast_step_is_the_mode_query_step_but_for_the_contrast():
