@@ -115,3 +115,22 @@ def test_the_mode_query_scores_each_patch_by_mode_and_starts_as_nothing():
     per_patch = added[:, :, :, :1, :, :1]
     torch.testing.assert_close(added, per_patch.expand_as(added))
     assert float(per_patch.std()) > 1e-3 and not torch.allclose(per_patch[0], per_patch[1])
+
+
+def test_a_fresh_predictor_beside_the_parents_selector_is_not_the_parents_predictor(tiny_checkpoint, tmp_path):
+    """``predictor_from_parent: false`` (configs/mode_from_scratch.yaml): the selector and its z
+    statistics come from --init-from, the predictor starts from its own initialisation."""
+    parent = checkpoint.load_policy(tiny_checkpoint.stem)
+    placement = CubePlacement.of(tiny_checkpoint.config)
+    data = training_data(tiny_checkpoint.views, placement)
+    config = dataclasses.replace(CONFIG, phases=("predictor",), predictor_from_parent=False,
+                                 predictor={**CONFIG.predictor, "conditioning": "query"})
+    with single_torch_thread():
+        torch.manual_seed(0)
+        trainer = Trainer(config, data, None, placement, perception_record(tiny_checkpoint.config), "tiny-synthetic",
+                          tmp_path, init_distributed("cpu"), init_from=tiny_checkpoint.stem, show_progress=False)
+    assert trainer.lineage["init_from"]["predictor_loaded"] is False
+    for name, value in parent.selector.state_dict().items():
+        torch.testing.assert_close(trainer.selector.state_dict()[name], value)
+    theirs = parent.predictor.state_dict()
+    assert any(not torch.equal(value, theirs[name]) for name, value in trainer.predictor.state_dict().items() if name in theirs)

@@ -84,3 +84,9 @@ def test_a_negative_mode_contrast_is_refused(tmp_path):
     (tmp_path / "bad.yaml").write_text("base: cpu_default\nmode_contrast: -0.5\n")
     with pytest.raises(ValueError, match="mode_contrast must be >= 0"):
         load_config(tmp_path / "bad.yaml")
+
+
+def test_mode_from_scratch_is_the_mode_contrast_step_trained_fresh_for_twenty_epochs():
+    contrast, step = load_config("mode_contrast"), load_config("mode_from_scratch")
+    assert contrast.predictor_from_parent and not step.predictor_from_parent and step.predictor_phase.epochs == 20
+    assert dataclasses.replace(step, predictor_from_parent=True, predictor_phase=contrast.predictor_phase) == contrast

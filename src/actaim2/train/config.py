@@ -68,6 +68,10 @@ class TrainConfig:
     # Samplers whose trajectories the predictor learns keyposes from (empty: all, as the paper). The
     # selector always learns from every success: its clusters describe all the modes collection found.
     predictor_samplers: tuple[str, ...] = ()
+    # With --init-from: take the parent's predictor weights (True) or train a freshly initialised
+    # predictor beside the parent's selector and z statistics (False), so that a conditioning is
+    # learned from the first step instead of being added at zero to a converged predictor.
+    predictor_from_parent: bool = True
     validation_fraction: float = 0.1  # trajectories of the training split held out for curves
     checkpoint_minutes: float = 10.0  # wall time between resumable checkpoints
     log_every: int = 20  # steps between TensorBoard scalars / progress-bar updates

@@ -111,13 +111,14 @@ class Trainer:
         """Start from another run's policy (e.g. the Goal-RVT predictor and its z statistics).
 
         A predictor that reads other inputs than the one there (an input ablation: other
-        ``inputs`` or ``view``) is not taken from it: it is trained afresh, beside the selector.
+        ``inputs`` or ``view``), or one the config asks fresh (``predictor_from_parent: false``), is
+        not taken from it: it is trained afresh, beside the selector.
         A FiLM or query predictor continued from an ``add`` one takes all its weights; the layers the
         parent lacks start where they change nothing (``PredictorConfig.conditioning``).
         """
         policy = checkpoint.load_policy(stem, self.perception, self.device)
         same_inputs = policy.predictor is not None and (policy.predictor.config.inputs, policy.predictor.config.view) \
-            == (self.predictor_config.inputs, self.predictor_config.view)
+            == (self.predictor_config.inputs, self.predictor_config.view) and self.config.predictor_from_parent
         if same_inputs:
             state = policy.predictor.state_dict()
             if policy.predictor.config.conditioning == "add":
