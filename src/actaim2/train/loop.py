@@ -118,8 +118,9 @@ class Trainer:
         """
         policy = checkpoint.load_policy(stem, self.perception, self.device)
         same_inputs = policy.predictor is not None and (policy.predictor.config.inputs, policy.predictor.config.view) \
-            == (self.predictor_config.inputs, self.predictor_config.view) and self.config.predictor_from_parent
-        if same_inputs:
+            == (self.predictor_config.inputs, self.predictor_config.view)
+        load_predictor = same_inputs and self.config.predictor_from_parent
+        if load_predictor:
             state = policy.predictor.state_dict()
             if policy.predictor.config.conditioning == "add":
                 # FiLM or query layers added to an "add" predictor start as initialised here, which
@@ -138,7 +139,7 @@ class Trainer:
             self.selector.obs_encoder.channel_std.copy_(policy.selector.obs_encoder.channel_std)
         parent = policy.meta.get("lineage", {})
         self.lineage["init_from"] = {"path": str(stem), "weights_sha256": policy.meta.get("weights_sha256"),
-                                     "phases_done": parent.get("phases_done"), "predictor_loaded": same_inputs,
+                                     "phases_done": parent.get("phases_done"), "predictor_loaded": load_predictor,
                                      "init_from": parent.get("init_from")}  # the chain back to the first run
 
     def _contrast_partners(self) -> list[np.ndarray]:
