@@ -58,7 +58,7 @@ def test_the_third_steps_control_is_structured_demos_but_for_ten_epochs():
     config = load_config("third_step_control")
     assert config == dataclasses.replace(base, predictor_phase=dataclasses.replace(base.predictor_phase, epochs=10))
     for step in ("point_pooling", "rotation_smoothing", "film_conditioning", "eps_noise_off", "mode_query", "mode_contrast",
-                 "augment_off", "mode_contrast_4"):
+                 "augment_off", "mode_contrast_4", "mode_contrast_16"):
         assert load_config(step).predictor_phase == config.predictor_phase
 
 
@@ -95,3 +95,14 @@ def test_mode_from_scratch_is_the_mode_contrast_step_trained_fresh_for_twenty_ep
 def test_mode_contrast_4_is_the_mode_contrast_step_but_four_times_as_strong():
     contrast, step = load_config("mode_contrast"), load_config("mode_contrast_4")
     assert step.mode_contrast == 4.0 and dataclasses.replace(step, mode_contrast=1.0) == contrast
+
+
+def test_mode_contrast_16_is_the_weight_4_step_but_four_times_as_strong_again():
+    four, step = load_config("mode_contrast_4"), load_config("mode_contrast_16")
+    assert step.mode_contrast == 16.0 and dataclasses.replace(step, mode_contrast=4.0) == four
+
+
+def test_mode_contrast_4_long_is_the_weight_4_step_but_for_twenty_epochs():
+    four, step = load_config("mode_contrast_4"), load_config("mode_contrast_4_long")
+    assert step.predictor_phase.epochs == 20
+    assert dataclasses.replace(step, predictor_phase=four.predictor_phase) == four

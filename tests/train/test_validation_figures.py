@@ -14,8 +14,8 @@ from actaim2.train.checkpoint import perception_record
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer
 from actaim2.data.storage import trajectory_outcome
-from actaim2.train.validation import (EMBEDDINGS, action_figures, mode_chain_figures, outcome_figures, outcome_rates,
-                                     predict_keyframes)
+from actaim2.train.validation import (EMBEDDINGS, action_figures, label_mode_ssr, mode_chain_figures, outcome_figures,
+                                     outcome_rates, predict_keyframes)
 from synthetic import PLACEMENT, make_dataset
 from test_stop_gradient import TINY
 
@@ -87,9 +87,19 @@ def test_mode_chain_finds_the_mode_in_eps_and_tests_clusters_where_there_are_som
     assert chain.trajectories == 24
     assert chain.eps_nearest_same_outcome > 0.9 > chain.majority_outcome
     if kind == "cvae":
-        assert chain.clusters is None
+        assert chain.clusters is None and chain.second_mode_ceiling is None
     else:
         assert (chain.clusters.objects, chain.clusters.samples) == (2, 2 * 2 * trainer.selector.config.clusters)
         assert 0.0 < chain.clusters.p_value <= 1.0
+        # The 2nd mode of each object is measured on one group's half B: 1 of 2 draws, 2 objects.
+        for rate in (chain.second_mode_ceiling, chain.second_mode_shuffled):
+            assert rate.trials == 2 and 0 <= rate.successes <= 2
     one_outcome = mode_chain_figures(trainer.selector, data, objects, ["0+"] * 24, torch.device("cpu"))
     assert one_outcome.trajectories == 0 and one_outcome.clusters is None
+
+
+def test_label_mode_ssr_chooses_each_modes_cluster_on_half_a_and_scores_half_b():
+    # Cluster 0 draws "0-" four times; cluster 1 draws "0+" at repetitions 0, 1, 2 and "1-" at 3.
+    first, second = label_mode_ssr([0] * 4 + [1] * 4, ["0-"] * 4 + ["0+"] * 3 + ["1-"], draws=4, obj="o")
+    assert (first.mode, first.group, first.rate.successes, first.rate.trials) == (("0", -1), 0, 2, 2)
+    assert (second.mode, second.group, second.rate.successes, second.rate.trials) == (("0", 1), 1, 1, 2)

@@ -28,7 +28,11 @@ The links before it, on the same objects (``mode_chain_figures``): does eps name
 all (the outcome of each trajectory's nearest other true eps, leave-one-out, against the
 majority), and do the clusters select outcomes (eps drawn from each cluster on the object's
 O_init, labelled by the outcome of its nearest true eps; mutual information of cluster and
-label with the evaluation's permutation test, ``actaim2.eval.mode_dependence``)?
+label with the evaluation's permutation test, ``actaim2.eval.mode_dependence``)? And how much of
+the evaluation's 2nd-mode SSR do the clusters allow: the Mode SSR (``actaim2.eval.mode_ssr``, its
+split-half choice) of those labels, as if every drawn eps were executed with success and reached
+its label's outcome, beside the same with the labels shuffled among the object's draws. With the
+evaluation's 4 draws per cluster it is the 2nd-mode figure a perfect predictor would score there.
 
 Mode selector: reconstruction error (mean squared error per dimension of eps, standardised
 units, so 1.0 is predicting the mean), cluster usage of the posterior assignments
@@ -46,6 +50,8 @@ import torch
 
 from actaim2.data.trajectory import PHASES
 from actaim2.eval.mode_dependence import Dependence, dependence
+from actaim2.eval.mode_ssr import GroupSample, ModeResult, object_mode_ssr, pooled
+from actaim2.eval.stats import Rate
 from actaim2.models.predictor import ActionPredictor, decode_action, proprio_features
 from actaim2.models.rotation_bins import grasp_geodesic_deg
 from actaim2.models.selector_base import ModeSelector
@@ -178,6 +184,8 @@ class ModeChainFigures:
     eps_nearest_same_outcome: float  # the nearest other true eps (same object) has the trajectory's outcome
     majority_outcome: float  # the object's most frequent other outcome is the trajectory's
     clusters: Dependence | None  # cluster against the outcome its drawn eps lie nearest (None: no clusters)
+    second_mode_ceiling: Rate | None  # 2nd-mode SSR of the drawn eps' labels (None: no clusters)
+    second_mode_shuffled: Rate | None  # the same with the labels shuffled among the object's draws
 
 
 @torch.no_grad()
@@ -187,7 +195,8 @@ def mode_chain_figures(selector: ModeSelector, data: TrainingData, objects: Sequ
     objects, outcomes = np.asarray(objects), np.asarray(outcomes)
     generator = torch.Generator(device=device).manual_seed(seed)
     with_clusters = selector.config.kind != "cvae"
-    hits, majority, per_object = [], [], []
+    hits, majority, per_object, ceiling, shuffled = [], [], [], [], []
+    shuffle = np.random.default_rng(seed)
     for obj in np.unique(objects):
         rows = np.flatnonzero(objects == obj)
         if len(set(outcomes[rows])) < 2:
@@ -207,9 +216,20 @@ def mode_chain_figures(selector: ModeSelector, data: TrainingData, objects: Sequ
                 labels += list(outcomes[rows[torch.cdist(drawn, true).argmin(dim=1).cpu().numpy()]])
                 groups += [cluster] * draws
             per_object.append((np.asarray(groups), np.unique(labels, return_inverse=True)[1]))
+            ceiling.append(label_mode_ssr(groups, labels, draws, str(obj)))
+            shuffled.append(label_mode_ssr(groups, list(shuffle.permutation(labels)), draws, str(obj)))
+    scored = with_clusters and bool(per_object)
     return ModeChainFigures(len(hits), float(np.mean(hits)) if hits else float("nan"),
                             float(np.mean(majority)) if majority else float("nan"),
-                            dependence(per_object) if with_clusters and per_object else None)
+                            dependence(per_object) if scored else None,
+                            pooled(ceiling, 2) if scored else None, pooled(shuffled, 2) if scored else None)
+
+
+def label_mode_ssr(groups: Sequence[int], labels: Sequence[str], draws: int, obj: str) -> list[ModeResult]:
+    """Modes 1 and 2 of one object's drawn eps, each labelled with an outcome ("1-": DoF 1, down)."""
+    samples = [GroupSample(int(g), i % draws, (label[:-1], 1 if label[-1] == "+" else -1))
+               for i, (g, label) in enumerate(zip(groups, labels))]
+    return object_mode_ssr(samples, 2, obj)
 
 
 @torch.no_grad()
@@ -259,6 +279,11 @@ def markdown(split: str, actions: dict[str, dict[str, ActionFigures]], selector:
                   f"other true eps has the trajectory's outcome {100 * chain.eps_nearest_same_outcome:.1f} % (most frequent "
                   f"other outcome: {100 * chain.majority_outcome:.1f} %); cluster against the outcome of its drawn eps' "
                   f"nearest true eps, MI {clusters}."]
+        if chain.second_mode_ceiling is not None:
+            lines += ["", f"2nd-mode SSR the clusters allow (those labels as outcomes, every draw a success; "
+                      f"the evaluation's split-half choice): {chain.second_mode_ceiling.cell()} % "
+                      f"({chain.second_mode_ceiling.trials} half-B draws), labels shuffled among the object's draws "
+                      f"{chain.second_mode_shuffled.cell()} %."]
     else:
         lines += ["", "Mode chain and outcome following: no object's trajectories show two or more outcomes."]
     lines += ["", "Outcome following (true z; objects whose other trajectories show two or more outcomes): the "
