@@ -1,6 +1,7 @@
 """Markdown tables of an evaluation's records: the paper's Table 1 (SSR), Table 2 (Mode SSR), the
-appendix table of 3rd and 4th modes, whether the groups select outcomes at all (a permutation
-test, ``mode_dependence.py``), the SSR of each cluster (whether some clusters draw eps the
+appendix table of 3rd and 4th modes, what the 2nd mode's group did on half B (the mode, the 1st
+mode, another, a failure, or no 2nd mode on the object), whether the groups select outcomes at all
+(a permutation test, ``mode_dependence.py``), the SSR of each cluster (whether some clusters draw eps the
 predictor cannot act on), the acceptance checks of issue 13, and where samples stopped
 (which phase the planner refused and why, and the SSR of the samples that ran all four phases:
 whether a row loses to infeasible keyposes or to keyposes that run and move nothing).
@@ -128,6 +129,41 @@ def mode_table(records: Sequence[dict], methods: list[str], ranks: Sequence[int]
                 row = [cells.get((m, split, c, rank), Rate(0, 0)).cell() for c in categories + [AVG]]
                 lines.append(f"| {METHODS[m].title}{suffix}, {MODE_NAMES[rank]} mode | " + " | ".join(row)
                              + f" | {cells[m, split, AVG, rank].trials} |")
+    return lines
+
+
+SECOND_MODE_OUTCOMES = ("2nd mode", "1st mode", "another mode", "failed", "no 2nd mode on the object")
+
+
+def second_mode_table(records: Sequence[dict], methods: list[str]) -> list[str]:
+    """Per method and split: the outcomes of the half-B samples that the 2nd-mode SSR counts.
+
+    Why: a low 2nd-mode SSR has different causes - the chosen group fails (the predictor's skill),
+    it executes the 1st mode (the groups do not separate the modes), or the object showed one
+    mode only (its half-B samples count as 0). The counts say which.
+    """
+    split_of = {(r["method"], r["object"]): r["split"] for r in records}
+    half_b: dict[tuple[str, str], list[dict]] = defaultdict(list)
+    for r in records:
+        if r.get("group", -1) >= 0 and r["repetition"] % 2 == 1:
+            half_b[r["method"], r["object"]].append(r)
+    counts: dict[tuple[str, str], dict[str, int]] = defaultdict(lambda: dict.fromkeys(SECOND_MODE_OUTCOMES, 0))
+    for (method, obj), (first, second) in object_modes(records, 2).items():
+        tally = counts[method, split_of[method, obj]]
+        if second.mode is None:  # counted as the Mode SSR counts it: 0 of its per-group half-B samples
+            tally["no 2nd mode on the object"] += second.rate.trials
+            continue
+        for r in (r for r in half_b[method, obj] if r["group"] == second.group):
+            mode = tuple(r["mode"]) if r["mode"] else None
+            tally["failed" if mode is None else "2nd mode" if mode == second.mode else "1st mode" if mode == first.mode
+                  else "another mode"] += 1
+    lines = ["| method | split | " + " | ".join(SECOND_MODE_OUTCOMES) + " |", "|---" * (len(SECOND_MODE_OUTCOMES) + 2) + "|"]
+    for m in methods:
+        for split in (s for s in _splits(records) if (m, s) in counts):
+            tally = counts[m, split]
+            total = max(1, sum(tally.values()))
+            lines.append(f"| {METHODS[m].title} | {SPLIT_TITLES[split]} | "
+                         + " | ".join(f"{tally[k]} ({100 * tally[k] / total:.0f} %)" for k in SECOND_MODE_OUTCOMES) + " |")
     return lines
 
 
@@ -267,6 +303,10 @@ def report(records: Sequence[dict], methods: list[str], header: list[str]) -> st
                   f"its rate measured on half B (docs/evaluation.md).{without}"] + mode_table(grouped, done)
     lines += ["", "## Appendix: objects with more than two modes (Mode SSR of modes 1-4, half B)", ""]
     lines += many_modes_table(grouped, done)
+    lines += ["", "## What the 2nd mode's group did on half B", "",
+              "The half-B samples the 2nd-mode SSR counts (Table 2): each object's group chosen for its 2nd mode on "
+              "half A, or, where the object showed one mode only, the samples it counts as 0.", ""]
+    lines += second_mode_table(grouped, done)
     lines += ["", "## Do the groups select outcomes? (all samples, docs/evaluation.md)", "",
               "Mutual information (nats, summed over objects) between the group a sample was drawn from and its "
               f"outcome (mode of a success, or failed); p: permutation test, groups shuffled within each object "
