@@ -106,3 +106,9 @@ def test_mode_contrast_4_long_is_the_weight_4_step_but_for_twenty_epochs():
     four, step = load_config("mode_contrast_4"), load_config("mode_contrast_4_long")
     assert step.predictor_phase.epochs == 20
     assert dataclasses.replace(step, predictor_phase=four.predictor_phase) == four
+
+
+def test_mode_contrast_16_low_noise_is_the_weight_16_step_but_for_the_eps_noise():
+    sixteen, step = load_config("mode_contrast_16"), load_config("mode_contrast_16_low_noise")
+    assert sixteen.eps_noise == 0.5 and step.eps_noise == 0.1
+    assert dataclasses.replace(step, eps_noise=0.5) == sixteen
