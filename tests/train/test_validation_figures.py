@@ -14,8 +14,8 @@ from actaim2.train.checkpoint import perception_record
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer
 from actaim2.data.storage import trajectory_outcome
-from actaim2.train.validation import (EMBEDDINGS, action_figures, label_mode_ssr, mode_chain_figures, outcome_figures,
-                                     outcome_rates, predict_keyframes)
+from actaim2.train.validation import (DRAWN_FOLLOWING_PHASES, EMBEDDINGS, action_figures, drawn_following, label_mode_ssr,
+                                     mode_chain_figures, outcome_figures, outcome_rates, predict_keyframes)
 from synthetic import PLACEMENT, make_dataset
 from test_stop_gradient import TINY
 
@@ -103,3 +103,24 @@ def test_label_mode_ssr_chooses_each_modes_cluster_on_half_a_and_scores_half_b()
     first, second = label_mode_ssr([0] * 4 + [1] * 4, ["0-"] * 4 + ["0+"] * 3 + ["1-"], draws=4, obj="o")
     assert (first.mode, first.group, first.rate.successes, first.rate.trials) == (("0", -1), 0, 2, 2)
     assert (second.mode, second.group, second.rate.successes, second.rate.trials) == (("0", 1), 1, 1, 2)
+
+
+@pytest.mark.parametrize("kind", ["cgmvae", "cvae"])
+def test_drawn_following_feeds_each_keyframe_one_draw_per_cluster(tmp_path, kind):
+    data, modes = make_dataset(24, resolution=32, seed=7)
+    config = dataclasses.replace(TINY, selector=dataclasses.replace(TINY.selector, kind=kind))
+    trainer = Trainer(config, data, None, PLACEMENT, perception_record({"synthetic": 1}), "synthetic", tmp_path,
+                      init_distributed("cpu"), show_progress=False)
+    objects, outcomes = ["o"] * len(data), ["0+" if m else "0-" for m in modes]
+    predictions = predict_keyframes(trainer.selector, trainer.predictor, data, PLACEMENT, torch.device("cpu"))
+    drawn = drawn_following(trainer.selector, trainer.predictor, data, PLACEMENT, predictions, objects, outcomes,
+                            torch.device("cpu"))
+    if kind == "cvae":  # no clusters to draw from
+        assert drawn == {}
+        return
+    phases = predictions.frames[:, 1]
+    assert set(drawn) <= set(DRAWN_FOLLOWING_PHASES) and drawn
+    for name, f in drawn.items():
+        assert f.keyframes == int((phases == PHASES.index(name)).sum())
+        assert 0.0 <= f.follows_named_outcome <= 1.0 and 0.0 <= f.shuffled <= 1.0
+        assert 1.0 <= f.distinct_outcomes <= 2.0  # two outcomes in the data

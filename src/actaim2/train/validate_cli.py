@@ -37,8 +37,8 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.train.curves import plot_curves, read_history
     from actaim2.train.data import dataset_digest, ensure_cache, open_cache
     from actaim2.train.distributed import choose_device
-    from actaim2.train.validation import action_figures, markdown, mode_chain_figures, outcome_figures, predict_keyframes, \
-        selector_figures
+    from actaim2.train.validation import action_figures, drawn_following, markdown, mode_chain_figures, outcome_figures, \
+        predict_keyframes, selector_figures
 
     stem = args.checkpoint or args.run / "policy"
     args.run.mkdir(parents=True, exist_ok=True)
@@ -58,19 +58,22 @@ def main(args: argparse.Namespace) -> int:
         print(f"actaim2 validate: {args.data} split {args.split} has trajectories without a DoF measurement "
               "(dof_change), so no outcome to follow: validate a simulated collection")
         return 1
-    predictions = predict_keyframes(policy.selector, policy.predictor, data, CubePlacement.of(perception), device)
+    placement = CubePlacement.of(perception)
+    predictions = predict_keyframes(policy.selector, policy.predictor, data, placement, device)
     actions = action_figures(predictions)
     selector = selector_figures(policy.selector, data, device)
     objects, outcomes = [object_of(t) for t in data.ids], data.outcomes.tolist()
     follow = outcome_figures(predictions, objects, outcomes)
     chain = mode_chain_figures(policy.selector, data, objects, outcomes, device)
+    drawn = drawn_following(policy.selector, policy.predictor, data, placement, predictions, objects, outcomes, device)
     digest = policy.meta.get("weights_sha256")
     report = {"checkpoint": str(stem), "weights_sha256": digest, "dataset": str(args.data),
               "dataset_digest": dataset_digest(args.data), "split": args.split,
               "actions": {k: {p: dataclasses.asdict(f) for p, f in v.items()} for k, v in actions.items()}, "selector": selector,
-              "outcome_following": {p: dataclasses.asdict(f) for p, f in follow.items()}, "mode_chain": dataclasses.asdict(chain)}
+              "outcome_following": {p: dataclasses.asdict(f) for p, f in follow.items()},
+              "drawn_following": {p: dataclasses.asdict(f) for p, f in drawn.items()}, "mode_chain": dataclasses.asdict(chain)}
     (args.run / "validation.json").write_text(json.dumps(report, indent=2) + "\n")
-    text = markdown(args.split, actions, selector, follow, chain)
+    text = markdown(args.split, actions, selector, follow, chain, drawn)
     (args.run / "validation.md").write_text(text)
     print(text)
     written = [args.run / "validation.json", args.run / "validation.md"]

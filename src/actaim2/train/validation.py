@@ -24,6 +24,13 @@ the scene alone, the first rate is no better than the second, and no cluster can
 The same rate for the demonstrated point itself is the most a predictor can score: different
 outcomes often start at the same handle, so it is highest at MANIPULATE.
 
+Outcome following as served (``drawn_following``): at REACH and MANIPULATE (where to act, which way
+to move), each keyframe is fed one eps drawn from each cluster on its trajectory's O_init instead of
+its own true eps. Each draw names an outcome (its nearest true eps's, as below); does the predicted
+point's nearest other demonstration have it? Against the same with the names shuffled among the
+keyframe's draws, and with the number of distinct outcomes the K points reach. Why: fed true eps the
+predictor may follow outcomes that the selector's draws, lying closer together, never reach.
+
 The links before it, on the same objects (``mode_chain_figures``): does eps name the outcome at
 all (the outcome of each trajectory's nearest other true eps, leave-one-out, against the
 majority), and do the clusters select outcomes (eps drawn from each cluster on the object's
@@ -152,6 +159,57 @@ def outcome_figures(predictions: KeyframePredictions, objects: Sequence[str],
                          np.asarray(objects), np.asarray(outcomes))
 
 
+@dataclass(frozen=True)
+class DrawnFollowing:
+    keyframes: int
+    follows_named_outcome: float  # the predicted point's nearest other demonstration has the draw's named outcome
+    shuffled: float  # the same with the names shuffled among the keyframe's draws: no following
+    distinct_outcomes: float  # distinct outcomes the K clusters' points reach, per keyframe
+
+
+DRAWN_FOLLOWING_PHASES = ("reach", "manipulate")
+
+
+@torch.no_grad()
+def drawn_following(selector: ModeSelector, predictor: ActionPredictor, data: TrainingData, placement: CubePlacement,
+                    predictions: KeyframePredictions, objects: Sequence[str], outcomes: Sequence[str],
+                    device: torch.device, seed: int = 0) -> dict[str, DrawnFollowing]:
+    """Per phase of ``DRAWN_FOLLOWING_PHASES``: does the point follow the outcome of eps drawn as served (module
+    docstring)? Empty for a selector without clusters. ``predictions`` gives the demonstrated targets."""
+    if selector.config.kind == "cvae":
+        return {}
+    objects, outcomes = np.asarray(objects), np.asarray(outcomes)
+    frames, target = predictions.frames, predictions.truth[:, :3]
+    trajectory, phase = frames[:, 0], frames[:, 1]
+    k = selector.config.clusters
+    generator = torch.Generator(device=device).manual_seed(seed)
+    shuffle = np.random.default_rng(seed)
+    result: dict[str, DrawnFollowing] = {}
+    for name in DRAWN_FOLLOWING_PHASES:
+        index = PHASES.index(name)
+        hits, shuffled, distinct = [], [], []
+        for row in np.flatnonzero(phase == index):
+            obj = objects[trajectory[row]]
+            others = np.flatnonzero((phase == index) & (objects[trajectory] == obj) & (trajectory != trajectory[row]))
+            if len(set(outcomes[trajectory[others]])) < 2:
+                continue
+            rows = np.flatnonzero(objects == obj)
+            views, z = data.selector_batch(rows, device)
+            batch = data.keyframe_batch(np.repeat(frames[row : row + 1], k, axis=0), device)
+            drawn = torch.cat([selector.sample(batch["init_views"][:1], c, generator).eps for c in range(k)])
+            named = outcomes[rows[torch.cdist(drawn, selector.standardise(z)).argmin(dim=1).cpu().numpy()]]
+            out = predictor(batch["views"], drawn, proprio_features(batch["gripper"], batch["phase"]))
+            points = decode_action(out, placement, predictor.config.view_index, predictor.config.decode_sigma_px).position
+            reached = np.array([outcomes[trajectory[others[np.argmin(np.linalg.norm(target[others] - q, axis=1))]]]
+                                for q in points.cpu().numpy()])
+            hits += list(reached == named)
+            shuffled += list(reached == shuffle.permutation(named))
+            distinct.append(len(set(reached)))
+        if distinct:
+            result[name] = DrawnFollowing(len(distinct), float(np.mean(hits)), float(np.mean(shuffled)), float(np.mean(distinct)))
+    return result
+
+
 def _is_most_frequent(outcome: str, others: np.ndarray) -> bool:
     """Would guessing the most frequent of ``others`` (ties: the first by name) give ``outcome``?"""
     values, counts = np.unique(others, return_counts=True)
@@ -256,7 +314,7 @@ def selector_figures(selector: ModeSelector, data: TrainingData, device: torch.d
 
 
 def markdown(split: str, actions: dict[str, dict[str, ActionFigures]], selector: dict,
-             outcomes: dict[str, OutcomeFigures], chain: ModeChainFigures) -> str:
+             outcomes: dict[str, OutcomeFigures], chain: ModeChainFigures, drawn: dict[str, DrawnFollowing]) -> str:
     """The figures as the README shows them: over all keyframes, then per keypose phase."""
     lines = [f"Validation on the visually-labelled successes of `{split}` "
              f"({selector['trajectories']} trajectories, {actions['reconstructed']['all'].keyframes} keyframes):", "",
@@ -293,6 +351,15 @@ def markdown(split: str, actions: dict[str, dict[str, ActionFigures]], selector:
     for phase, f in outcomes.items():
         lines.append(f"| {phase.upper()} | {f.keyframes} | {100 * f.nearest_demo_same_outcome:.1f} % | "
                      f"{100 * f.demonstrated_point:.1f} % | {100 * f.majority_outcome:.1f} % |")
+    if drawn:
+        lines += ["", "Outcome following as served (one eps drawn from each cluster on the trajectory's O_init; each names "
+                  "the outcome of its nearest true eps): the predicted point's nearest other demonstration has the named "
+                  "outcome, against the names shuffled among the keyframe's draws:", "",
+                  "| keypose | keyframes | follows the named outcome | names shuffled | distinct outcomes reached per keyframe |",
+                  "|---|---|---|---|---|"]
+        for phase, f in drawn.items():
+            lines.append(f"| {phase.upper()} | {f.keyframes} | {100 * f.follows_named_outcome:.1f} % | "
+                         f"{100 * f.shuffled:.1f} % | {f.distinct_outcomes:.2f} of {len(selector['posterior']['counts'])} draws |")
     post, prior = selector["posterior"], selector["prior_draws"]
     k = len(post["counts"])
     lines += ["", f"Selector: reconstruction MSE {selector['reconstruction_mse']:.3f} per dimension of standardised eps "
