@@ -94,6 +94,7 @@ def test_mode_chain_finds_the_mode_in_eps_and_tests_clusters_where_there_are_som
         # The 2nd mode of each object is measured on one group's half B: 1 of 2 draws, 2 objects.
         for rate in (chain.second_mode_ceiling, chain.second_mode_shuffled):
             assert rate.trials == 2 and 0 <= rate.successes <= 2
+        assert chain.true_spread > 0.0 and chain.drawn_spread > 0.0
     one_outcome = mode_chain_figures(trainer.selector, data, objects, ["0+"] * 24, torch.device("cpu"))
     assert one_outcome.trajectories == 0 and one_outcome.clusters is None
 

@@ -244,6 +244,8 @@ class ModeChainFigures:
     clusters: Dependence | None  # cluster against the outcome its drawn eps lie nearest (None: no clusters)
     second_mode_ceiling: Rate | None  # 2nd-mode SSR of the drawn eps' labels (None: no clusters)
     second_mode_shuffled: Rate | None  # the same with the labels shuffled among the object's draws
+    true_spread: float  # mean distance between two true eps of one object (nan: no clusters)
+    drawn_spread: float  # mean distance between two of its drawn eps (all clusters' draws together)
 
 
 @torch.no_grad()
@@ -253,7 +255,7 @@ def mode_chain_figures(selector: ModeSelector, data: TrainingData, objects: Sequ
     objects, outcomes = np.asarray(objects), np.asarray(outcomes)
     generator = torch.Generator(device=device).manual_seed(seed)
     with_clusters = selector.config.kind != "cvae"
-    hits, majority, per_object, ceiling, shuffled = [], [], [], [], []
+    hits, majority, per_object, ceiling, shuffled, spread = [], [], [], [], [], []
     shuffle = np.random.default_rng(seed)
     for obj in np.unique(objects):
         rows = np.flatnonzero(objects == obj)
@@ -268,11 +270,13 @@ def mode_chain_figures(selector: ModeSelector, data: TrainingData, objects: Sequ
             majority.append(_is_most_frequent(outcomes[row], outcomes[np.delete(rows, i)]))
         if with_clusters:
             condition = views[:1].expand(draws, *views.shape[1:])
-            groups, labels = [], []
+            groups, labels, drawn_all = [], [], []
             for cluster in range(selector.config.clusters):
                 drawn = selector.sample(condition, cluster, generator).eps
                 labels += list(outcomes[rows[torch.cdist(drawn, true).argmin(dim=1).cpu().numpy()]])
                 groups += [cluster] * draws
+                drawn_all.append(drawn)
+            spread.append((torch.pdist(true).mean().item(), torch.pdist(torch.cat(drawn_all)).mean().item()))
             per_object.append((np.asarray(groups), np.unique(labels, return_inverse=True)[1]))
             ceiling.append(label_mode_ssr(groups, labels, draws, str(obj)))
             shuffled.append(label_mode_ssr(groups, list(shuffle.permutation(labels)), draws, str(obj)))
@@ -280,7 +284,8 @@ def mode_chain_figures(selector: ModeSelector, data: TrainingData, objects: Sequ
     return ModeChainFigures(len(hits), float(np.mean(hits)) if hits else float("nan"),
                             float(np.mean(majority)) if majority else float("nan"),
                             dependence(per_object) if scored else None,
-                            pooled(ceiling, 2) if scored else None, pooled(shuffled, 2) if scored else None)
+                            pooled(ceiling, 2) if scored else None, pooled(shuffled, 2) if scored else None,
+                            *(np.mean(spread, axis=0).tolist() if scored else (float("nan"), float("nan"))))
 
 
 def label_mode_ssr(groups: Sequence[int], labels: Sequence[str], draws: int, obj: str) -> list[ModeResult]:
@@ -341,7 +346,8 @@ def markdown(split: str, actions: dict[str, dict[str, ActionFigures]], selector:
             lines += ["", f"2nd-mode SSR the clusters allow (those labels as outcomes, every draw a success; "
                       f"the evaluation's split-half choice): {chain.second_mode_ceiling.cell()} % "
                       f"({chain.second_mode_ceiling.trials} half-B draws), labels shuffled among the object's draws "
-                      f"{chain.second_mode_shuffled.cell()} %."]
+                      f"{chain.second_mode_shuffled.cell()} %. Two eps of one object lie {chain.true_spread:.2f} apart "
+                      f"on average when true, {chain.drawn_spread:.2f} when drawn (standardised eps)."]
     else:
         lines += ["", "Mode chain and outcome following: no object's trajectories show two or more outcomes."]
     lines += ["", "Outcome following (true z; objects whose other trajectories show two or more outcomes): the "
