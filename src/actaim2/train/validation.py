@@ -184,6 +184,7 @@ def drawn_following(selector: ModeSelector, predictor: ActionPredictor, data: Tr
     k = selector.config.clusters
     generator = torch.Generator(device=device).manual_seed(seed)
     shuffle = np.random.default_rng(seed)
+    true = selector.standardise(torch.from_numpy(np.asarray(data.z)).to(device))
     result: dict[str, DrawnFollowing] = {}
     for name in DRAWN_FOLLOWING_PHASES:
         index = PHASES.index(name)
@@ -194,11 +195,11 @@ def drawn_following(selector: ModeSelector, predictor: ActionPredictor, data: Tr
             if len(set(outcomes[trajectory[others]])) < 2:
                 continue
             rows = np.flatnonzero(objects == obj)
-            views, z = data.selector_batch(rows, device)
-            batch = data.keyframe_batch(np.repeat(frames[row : row + 1], k, axis=0), device)
-            drawn = torch.cat([selector.sample(batch["init_views"][:1], c, generator).eps for c in range(k)])
-            named = outcomes[rows[torch.cdist(drawn, selector.standardise(z)).argmin(dim=1).cpu().numpy()]]
-            out = predictor(batch["views"], drawn, proprio_features(batch["gripper"], batch["phase"]))
+            batch = data.keyframe_batch(frames[row : row + 1], device)
+            drawn = torch.cat([selector.sample(batch["init_views"], c, generator).eps for c in range(k)])
+            named = outcomes[rows[torch.cdist(drawn, true[rows]).argmin(dim=1).cpu().numpy()]]
+            views = batch["views"].expand(k, *batch["views"].shape[1:])
+            out = predictor(views, drawn, proprio_features(batch["gripper"], batch["phase"]).expand(k, -1))
             points = decode_action(out, placement, predictor.config.view_index, predictor.config.decode_sigma_px).position
             reached = np.array([outcomes[trajectory[others[np.argmin(np.linalg.norm(target[others] - q, axis=1))]]]
                                 for q in points.cpu().numpy()])
