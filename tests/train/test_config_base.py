@@ -5,7 +5,7 @@ import dataclasses
 
 import pytest
 
-from actaim2.train.config import load_config
+from actaim2.train.config import TrainConfig, load_config
 
 
 def test_ablation_configs_are_the_cpu_default_but_for_phases_and_predictor_inputs():
@@ -112,3 +112,16 @@ def test_mode_contrast_16_low_noise_is_the_weight_16_step_but_for_the_eps_noise(
     sixteen, step = load_config("mode_contrast_16"), load_config("mode_contrast_16_low_noise")
     assert sixteen.eps_noise == 0.5 and step.eps_noise == 0.1
     assert dataclasses.replace(step, eps_noise=0.5) == sixteen
+
+
+def test_served_eps_is_the_weight_16_step_but_for_the_eps_the_predictor_reads():
+    sixteen, step = load_config("mode_contrast_16"), load_config("served_eps")
+    assert sixteen.predictor_eps == "true" and (step.predictor_eps, step.served_draws) == ("served", 8)
+    assert dataclasses.replace(step, predictor_eps="true") == sixteen
+
+
+@pytest.mark.parametrize("change, message", [({"predictor_eps": "drawn"}, "predictor_eps must be one of"),
+                                             ({"served_draws": 0}, "served_draws must be >= 1")])
+def test_a_bad_served_eps_setting_is_refused(change, message):
+    with pytest.raises(ValueError, match=message):
+        TrainConfig.from_dict(change)

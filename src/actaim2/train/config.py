@@ -20,6 +20,7 @@ from actaim2.models.selector_base import SelectorConfig
 
 CONFIG_DIR = Path(__file__).parent / "configs"
 PHASES = ("selector", "predictor", "joint")
+PREDICTOR_EPS = ("true", "served")
 
 
 @dataclass(frozen=True)
@@ -68,6 +69,11 @@ class TrainConfig:
     # Samplers whose trajectories the predictor learns keyposes from (empty: all, as the paper). The
     # selector always learns from every success: its clusters describe all the modes collection found.
     predictor_samplers: tuple[str, ...] = ()
+    # The eps the predictor phase feeds (train/served_eps.py): "true" (the trajectory's own, plus
+    # eps_noise; the paper) or "served" (a draw of the selector's clusters whose nearest true eps is
+    # the trajectory's, ``served_draws`` per cluster and trajectory; true eps + noise where none is).
+    predictor_eps: str = "true"
+    served_draws: int = 8
     # With --init-from: take the parent's predictor weights (True) or train a freshly initialised
     # predictor beside the parent's selector and z statistics (False), so that a conditioning is
     # learned from the first step instead of being added at zero to a converged predictor.
@@ -84,6 +90,10 @@ class TrainConfig:
             raise ValueError(f"unknown phases {bad}; choose from {PHASES}")
         if self.rotation_sigma_deg < 0.0:
             raise ValueError(f"rotation_sigma_deg must be >= 0 (0: one-hot targets), got {self.rotation_sigma_deg}")
+        if self.predictor_eps not in PREDICTOR_EPS:
+            raise ValueError(f"predictor_eps must be one of {PREDICTOR_EPS}, got {self.predictor_eps!r}")
+        if self.served_draws < 1:
+            raise ValueError(f"served_draws must be >= 1, got {self.served_draws}")
         if self.mode_contrast < 0.0:
             raise ValueError(f"mode_contrast must be >= 0 (0: off), got {self.mode_contrast}")
 

@@ -3,7 +3,8 @@
 Phases (``TrainConfig.phases``, in order):
   selector   the mode selector alone on (O_init, z): its loss (train/elbo.py).
   predictor  the action predictor alone on keyframes (O_i, a_i) fed the trajectory's *true*
-             standardised z as eps. The result is the Goal-RVT baseline.
+             standardised z as eps. The result is the Goal-RVT baseline. With
+             ``predictor_eps: served`` it is fed the selector's draws instead (train/served_eps.py).
   joint      both: L_action(predictor(O_i, sg[eps_hat])) + w L_ELBO, eps_hat the selector's
              reconstruction of the trajectory's z; the stop-gradient keeps the action loss
              out of the selector (paper, "Training Procedure").
@@ -46,6 +47,7 @@ from actaim2.train.data import TrainingData
 from actaim2.train.distributed import DistContext, rank_slice, wrap
 from actaim2.train.elbo import selector_loss
 from actaim2.train.mode_contrast import contrast_partners, draw_partners, mode_contrast_loss
+from actaim2.train.served_eps import pick_served, served_eps_pools
 
 STATE = "train_state"
 POLICY = "policy"
@@ -98,6 +100,7 @@ class Trainer:
         self.phase_index, self.step, self.optimizer_state = 0, 0, None
         self.temperature = gumbel_temperature(0.0)  # the CGMVAE's Gumbel-softmax temperature, annealed per epoch
         self.partners = self._contrast_partners() if config.mode_contrast > 0.0 else None
+        self.served_pools: list[np.ndarray] | None = None  # per trajectory, during a "served" predictor phase
         if init_from is not None:
             self._init_from(init_from)
         else:
@@ -264,6 +267,15 @@ class Trainer:
         if self.optimizer_state is not None:
             optimizer.load_state_dict(self.optimizer_state)
         wrapped = {m: wrap(m, self.ctx) for m in self._modules(phase)}
+        if phase == "predictor" and self.config.predictor_eps == "served":  # the selector is fixed from here on
+            self.selector.eval()
+            self.served_pools = served_eps_pools(self.selector, self.train, [object_of(i) for i in self.train.ids],
+                                                 np.unique(items[:, 0]), self.config.served_draws, self.device,
+                                                 self.config.seed)
+            if self.ctx.is_main:
+                held = [len(p) for p in self.served_pools if len(p)]
+                print(f"served eps: {len(held)} of {len(np.unique(items[:, 0]))} trajectories hold draws "
+                      f"(median {int(np.median(held)) if held else 0} each); the others keep their true eps")
         last_save, t0, metrics = time.monotonic(), time.monotonic(), {}
         bar = tqdm(total=total, initial=self.step, desc=f"{phase}", disable=not self.show)
         for m in self._modules(phase):
@@ -290,6 +302,7 @@ class Trainer:
                 self.save_state(optimizer, phase)
                 last_save = time.monotonic()
         bar.close()
+        self.served_pools = None
         return PhaseResult(total, time.monotonic() - t0, metrics)
 
     def _autocast(self):
@@ -342,7 +355,7 @@ class Trainer:
             views, keypose = self.augment(batch["views"], batch["keypose"], rng)
             point = self.placement.to_cube(keypose[:, :3]) if rng is not None else None  # teacher forcing: training only
             proprio = proprio_features(batch["gripper"], batch["phase"])
-            out = predictor(views, self.perturb_eps(eps_in, rng), proprio, point)
+            out = predictor(views, self.training_eps(eps_in, items[:, 0], rng), proprio, point)
             targets = action_targets(keypose, self.placement, views.shape[-1], view=self.predictor_config.view_index)
             action, parts = action_loss(out, targets,
                                         rotation_sigma_deg=self.config.rotation_sigma_deg if rng is not None else 0.0)
@@ -352,7 +365,7 @@ class Trainer:
                 if len(positions):
                     k = torch.from_numpy(positions).to(self.device)
                     eps_other = self.selector.standardise(torch.from_numpy(self.train.z[drawn]).to(self.device))
-                    other = predictor(views[k], self.perturb_eps(eps_other, rng), proprio[k], point[k])
+                    other = predictor(views[k], self.training_eps(eps_other, drawn, rng), proprio[k], point[k])
                     contrast = mode_contrast_loss(heatmap_log_likelihood(out.heatmaps[k], targets.heatmaps[k]),
                                                   heatmap_log_likelihood(other.heatmaps, targets.heatmaps[k]))
                     action = action + self.config.mode_contrast * contrast
@@ -372,6 +385,19 @@ class Trainer:
             return eps
         noise = torch.from_numpy(rng.standard_normal(tuple(eps.shape)).astype(np.float32)).to(eps.device, eps.dtype)
         return eps + self.config.eps_noise * noise
+
+    def training_eps(self, eps: torch.Tensor, rows: np.ndarray, rng: np.random.Generator | None) -> torch.Tensor:
+        """The eps a training batch of trajectories ``rows`` feeds the predictor: ``eps`` plus noise,
+        and, in a "served" predictor phase, a draw of the selector for every trajectory whose pool
+        holds one (train/served_eps.py). Validation (no ``rng``) feeds ``eps`` as given."""
+        eps = self.perturb_eps(eps, rng)
+        if self.served_pools is None or rng is None:
+            return eps
+        positions, drawn = pick_served(self.served_pools, rows, rng)
+        if len(positions):
+            eps = eps.clone()
+            eps[torch.from_numpy(positions).to(eps.device)] = torch.from_numpy(drawn).to(eps.device, eps.dtype)
+        return eps
 
     def augment(self, views: torch.Tensor, keypose: torch.Tensor,
                 rng: np.random.Generator | None) -> tuple[torch.Tensor, torch.Tensor]:

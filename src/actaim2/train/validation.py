@@ -64,6 +64,7 @@ from actaim2.models.rotation_bins import grasp_geodesic_deg
 from actaim2.models.selector_base import ModeSelector
 from actaim2.models.view_geometry import CubePlacement
 from actaim2.train.data import TrainingData
+from actaim2.train.served_eps import nearest_true
 
 EMBEDDINGS = ("reconstructed", "true")
 
@@ -197,11 +198,11 @@ def drawn_following(selector: ModeSelector, predictor: ActionPredictor, data: Tr
             rows = np.flatnonzero(objects == obj)
             batch = data.keyframe_batch(frames[row : row + 1], device)
             drawn = torch.cat([selector.sample(batch["init_views"], c, generator).eps for c in range(k)])
-            named = outcomes[rows[torch.cdist(drawn, true[rows]).argmin(dim=1).cpu().numpy()]]
+            named = outcomes[rows[nearest_true(drawn, true[rows])]]
             views = batch["views"].expand(k, *batch["views"].shape[1:])
             out = predictor(views, drawn, proprio_features(batch["gripper"], batch["phase"]).expand(k, -1))
             points = decode_action(out, placement, predictor.config.view_index, predictor.config.decode_sigma_px).position
-            reached = np.array([outcomes[trajectory[others[np.argmin(np.linalg.norm(target[others] - q, axis=1))]]]
+            reached = np.array([_nearest_outcome(q, target[others], outcomes[trajectory[others]])
                                 for q in points.cpu().numpy()])
             hits += list(reached == named)
             shuffled += list(reached == shuffle.permutation(named))
@@ -209,6 +210,11 @@ def drawn_following(selector: ModeSelector, predictor: ActionPredictor, data: Tr
         if distinct:
             result[name] = DrawnFollowing(len(distinct), float(np.mean(hits)), float(np.mean(shuffled)), float(np.mean(distinct)))
     return result
+
+
+def _nearest_outcome(point: np.ndarray, targets: np.ndarray, outcomes: np.ndarray) -> str:
+    """The outcome of the demonstration whose point (of ``targets``) lies nearest ``point``."""
+    return outcomes[np.argmin(np.linalg.norm(targets - point, axis=1))]
 
 
 def _is_most_frequent(outcome: str, others: np.ndarray) -> bool:
@@ -230,7 +236,7 @@ def outcome_rates(point: np.ndarray, target: np.ndarray, frames: np.ndarray, obj
             if len(set(outcome[others])) < 2:
                 continue
             for scores, at in ((hits, point[row]), (ceiling, target[row])):
-                scores.append(outcome[others[np.argmin(np.linalg.norm(target[others] - at, axis=1))]] == outcome[row])
+                scores.append(_nearest_outcome(at, target[others], outcome[others]) == outcome[row])
             majority.append(_is_most_frequent(outcome[row], outcome[others]))
         if hits:
             result[name] = OutcomeFigures(len(hits), float(np.mean(hits)), float(np.mean(majority)), float(np.mean(ceiling)))
@@ -274,7 +280,7 @@ def mode_chain_figures(selector: ModeSelector, data: TrainingData, objects: Sequ
             groups, labels, drawn_all = [], [], []
             for cluster in range(selector.config.clusters):
                 drawn = selector.sample(condition, cluster, generator).eps
-                labels += list(outcomes[rows[torch.cdist(drawn, true).argmin(dim=1).cpu().numpy()]])
+                labels += list(outcomes[rows[nearest_true(drawn, true)]])
                 groups += [cluster] * draws
                 drawn_all.append(drawn)
             spread.append((torch.pdist(true).mean().item(), torch.pdist(torch.cat(drawn_all)).mean().item()))

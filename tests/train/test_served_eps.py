@@ -1,0 +1,88 @@
+"""Served eps (train/served_eps.py): every draw of the selector lands in the pool of its object's
+trajectory whose true eps lies nearest, only the predictor's trajectories take draws, and a
+"served" predictor phase feeds a keyframe a draw of its trajectory's pool (its true eps plus noise
+where the pool is empty) in training batches only."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import torch
+
+from actaim2.data.storage import object_of
+from actaim2.train.checkpoint import perception_record
+from actaim2.train.distributed import init_distributed
+from actaim2.train.loop import Trainer
+from actaim2.train.served_eps import pick_served, served_eps_pools
+from synthetic import PLACEMENT, make_dataset
+from test_stop_gradient import TINY
+from torch_threads import single_torch_thread
+
+pytestmark = pytest.mark.timeout(600)
+
+
+def _trainer(data, tmp_path, **changes) -> Trainer:
+    torch.manual_seed(0)
+    return Trainer(dataclasses.replace(TINY, **changes), data, None, PLACEMENT, perception_record({"synthetic": 1}),
+                   "synthetic", tmp_path, init_distributed("cpu"), show_progress=False)
+
+
+def _data(n: int = 9):
+    data, _ = make_dataset(n, resolution=32, seed=4)
+    return dataclasses.replace(data, ids=[f"box{i % 3}-grasp-{i:05d}" for i in range(n)])
+
+
+def test_each_draw_goes_to_its_objects_nearest_trajectory(tmp_path):
+    data = _data()
+    with single_torch_thread():
+        selector = _trainer(data, tmp_path).selector.eval()
+        objects = np.array([object_of(i) for i in data.ids])
+        rows = np.array([0, 1, 3, 4, 6, 7])  # trajectories 2, 5, 8 teach no keyposes: they take no draws
+        pools = served_eps_pools(selector, data, objects, rows, draws=3, device=torch.device("cpu"))
+        true = selector.standardise(torch.from_numpy(data.z)).numpy()
+    assert sum(len(p) for p in pools) == len(rows) * selector.config.clusters * 3
+    assert [len(pools[r]) for r in (2, 5, 8)] == [0, 0, 0]
+    for owner, pool in enumerate(pools):
+        candidates = rows[objects[rows] == objects[owner]]
+        for eps in pool:
+            distance = np.linalg.norm(true[candidates] - eps, axis=1)
+            assert candidates[np.argmin(distance)] == owner
+    # The pools are the selector's draws, not copies of the true eps.
+    assert not any(np.allclose(eps, true[r]) for r, pool in enumerate(pools) for eps in pool)
+
+
+def test_no_draws_is_refused(tmp_path):
+    data = _data(3)
+    with pytest.raises(ValueError, match="at least 1 draw"):
+        served_eps_pools(_trainer(data, tmp_path).selector, data, ["a"] * 3, np.arange(3), 0, torch.device("cpu"))
+
+
+def test_picks_come_from_the_rows_own_pools():
+    pools = [np.zeros((0, 2), np.float32), np.array([[1.0, 1.0], [2.0, 2.0]], np.float32), np.array([[5.0, 5.0]], np.float32)]
+    positions, picked = pick_served(pools, np.array([0, 2, 1, 0]), np.random.default_rng(0))
+    assert positions.tolist() == [1, 2]
+    assert picked[0].tolist() == [5.0, 5.0] and picked[1].tolist() in ([1.0, 1.0], [2.0, 2.0])
+
+
+def test_a_served_predictor_phase_feeds_pool_draws_in_training_batches_only(tmp_path):
+    data = _data()
+    with single_torch_thread():
+        trainer = _trainer(data, tmp_path, predictor_eps="served", served_draws=2, eps_noise=0.5)
+        eps = trainer.selector.standardise(torch.from_numpy(data.z[[0, 1, 2]]))
+        assert torch.equal(trainer.training_eps(eps, np.array([0, 1, 2]), None), eps)  # outside the phase: as given
+        trainer.served_pools = [np.full((1, eps.shape[1]), 7.0, np.float32), np.zeros((0, eps.shape[1]), np.float32),
+                                np.full((1, eps.shape[1]), 9.0, np.float32)]
+        fed = trainer.training_eps(eps, np.array([0, 1, 2]), np.random.default_rng(1))
+        assert torch.all(fed[0] == 7.0) and torch.all(fed[2] == 9.0)
+        assert not torch.equal(fed[1], eps[1]) and torch.allclose(fed[1], eps[1], atol=4.0)  # true eps plus noise
+        assert torch.equal(trainer.training_eps(eps, np.array([0, 1, 2]), None), eps)  # validation batches: as given
+        # The phase builds the pools from the selector, then drops them: the joint phase reads the selector's eps.
+        trainer.served_pools = None
+        trainer.config = dataclasses.replace(trainer.config, phases=("predictor",),
+                                             predictor_phase=dataclasses.replace(trainer.config.predictor_phase, epochs=0.1))
+        seen = []
+        original = trainer.training_eps
+        trainer.training_eps = lambda e, r, g: (seen.append(trainer.served_pools is not None), original(e, r, g))[1]
+        trainer._run_phase("predictor")
+    assert seen and all(seen) and trainer.served_pools is None
