@@ -125,3 +125,9 @@ def test_served_eps_is_the_weight_16_step_but_for_the_eps_the_predictor_reads():
 def test_a_bad_served_eps_setting_is_refused(change, message):
     with pytest.raises(ValueError, match=message):
         TrainConfig.from_dict(change)
+
+
+def test_served_eps_long_is_the_served_step_but_for_twenty_epochs():
+    served, step = load_config("served_eps"), load_config("served_eps_long")
+    assert step.predictor_phase.epochs == 20
+    assert dataclasses.replace(step, predictor_phase=served.predictor_phase) == served

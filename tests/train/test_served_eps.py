@@ -52,6 +52,14 @@ def test_each_draw_goes_to_its_objects_nearest_trajectory(tmp_path):
     assert not any(np.allclose(eps, true[r]) for r, pool in enumerate(pools) for eps in pool)
 
 
+def test_a_selector_without_clusters_gives_draws_from_its_one_gaussian(tmp_path):
+    data = _data(6)
+    with single_torch_thread():
+        selector = _trainer(data, tmp_path, selector=dataclasses.replace(TINY.selector, kind="cvae")).selector.eval()
+        pools = served_eps_pools(selector, data, [object_of(i) for i in data.ids], np.arange(6), 3, torch.device("cpu"))
+    assert sum(len(p) for p in pools) == 6 * 3
+
+
 def test_no_draws_is_refused(tmp_path):
     data = _data(3)
     with pytest.raises(ValueError, match="at least 1 draw"):

@@ -39,7 +39,7 @@ def served_eps_pools(selector: ModeSelector, data: TrainingData, objects: Sequen
 
     Only the trajectories in ``rows`` (those the predictor learns keyposes from) receive draws and
     are candidates; every other trajectory's pool is empty. A selector without discrete modes
-    (cvae) is drawn from ``clusters`` = 1 times, unconditioned.
+    (cvae) gives ``draws`` draws per trajectory, from its one Gaussian.
     """
     if draws < 1:
         raise ValueError(f"served eps need at least 1 draw per cluster, got {draws}")
