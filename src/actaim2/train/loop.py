@@ -269,12 +269,12 @@ class Trainer:
         wrapped = {m: wrap(m, self.ctx) for m in self._modules(phase)}
         if phase == "predictor" and self.config.predictor_eps == "served":  # the selector is fixed from here on
             self.selector.eval()
+            trajectories = np.unique(items[:, 0])
             self.served_pools = served_eps_pools(self.selector, self.train, [object_of(i) for i in self.train.ids],
-                                                 np.unique(items[:, 0]), self.config.served_draws, self.device,
-                                                 self.config.seed)
+                                                 trajectories, self.config.served_draws, self.device, self.config.seed)
             if self.ctx.is_main:
                 held = [len(p) for p in self.served_pools if len(p)]
-                print(f"served eps: {len(held)} of {len(np.unique(items[:, 0]))} trajectories hold draws "
+                print(f"served eps: {len(held)} of {len(trajectories)} trajectories hold draws "
                       f"(median {int(np.median(held)) if held else 0} each); the others keep their true eps")
         last_save, t0, metrics = time.monotonic(), time.monotonic(), {}
         bar = tqdm(total=total, initial=self.step, desc=f"{phase}", disable=not self.show)
