@@ -226,9 +226,8 @@ def _goal(velocity_scaling: float, phase: int):
 def test_execute_keypose_goal_feedback_result(ros_node, peer) -> None:
     from action_msgs.msg import GoalStatus
 
-    from actaim2_msgs.msg import Keypose
-
     from actaim2_msgs.action import ExecuteKeypose
+    from actaim2_msgs.msg import Keypose
 
     client = _action_client(ros_node)
     # Feedback is a topic and the result a service answer, and rclpy's ActionClient drops a goal's
@@ -248,10 +247,11 @@ def test_execute_keypose_goal_feedback_result(ros_node, peer) -> None:
     ours = lambda: [m.feedback for m in published if bytes(m.goal_id.uuid) == bytes(goal_handle.goal_id.uuid)]
     wait_for(lambda: bool(ours()) and ours()[-1].progress == pytest.approx(1.0), CALL_TIMEOUT)
     ros_node.destroy_subscription(topic)
+    received = ours()
     assert feedback, "no feedback reached the goal's callback"
-    progress = [f.progress for f in ours()]
+    progress = [f.progress for f in received]
     assert progress == sorted(progress) and progress[-1] == pytest.approx(1.0)
-    assert {f.phase for f in ours()} == {Keypose.PHASE_REACH}
+    assert {f.phase for f in received} == {Keypose.PHASE_REACH}
 
 
 def test_execute_keypose_cancel(ros_node, peer) -> None:
