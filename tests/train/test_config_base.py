@@ -131,3 +131,14 @@ def test_served_eps_long_is_the_served_step_but_for_twenty_epochs():
     served, step = load_config("served_eps"), load_config("served_eps_long")
     assert step.predictor_phase.epochs == 20
     assert dataclasses.replace(step, predictor_phase=served.predictor_phase) == served
+
+
+def test_mode_query_lr_is_the_weight_16_step_but_for_the_conditioning_layers_rate():
+    sixteen, step = load_config("mode_contrast_16"), load_config("mode_query_lr")
+    assert sixteen.conditioning_lr_scale == 1.0 and step.conditioning_lr_scale == 10.0
+    assert dataclasses.replace(step, conditioning_lr_scale=1.0) == sixteen
+
+
+def test_a_conditioning_lr_scale_of_zero_is_refused():
+    with pytest.raises(ValueError, match="conditioning_lr_scale must be > 0"):
+        TrainConfig.from_dict({"conditioning_lr_scale": 0.0})

@@ -77,6 +77,9 @@ INPUT_GROUPS: dict[str, tuple[str, ...]] = {"rgb": ("r", "g", "b"), "xyz": ("x",
                                             "depth": ("depth", "occupancy"), "uv": ()}
 ROTATION_POOLING = ("heatmap", "point")
 CONDITIONING = ("add", "film", "query")
+# Parameter-name prefixes of the layers only "film" / "query" predictors have: a predictor continued from an
+# "add" one gets them freshly initialised, and TrainConfig.conditioning_lr_scale trains them at their own rate.
+CONDITIONING_LAYERS = ("film.", "query.", "key.")
 
 
 @dataclass(frozen=True)

@@ -66,6 +66,9 @@ class TrainConfig:
     # Weight of the mode contrast (train/mode_contrast.py): the demonstrated point must be likelier
     # under the trajectory's own eps than under the eps of the same object's other outcome (0: off, the paper).
     mode_contrast: float = 0.0
+    # Learning-rate multiplier of the predictor's FiLM / mode-query layers (models/predictor.py
+    # CONDITIONING_LAYERS), which a predictor continued from an "add" one starts at zero (1: one rate for all).
+    conditioning_lr_scale: float = 1.0
     # Samplers whose trajectories the predictor learns keyposes from (empty: all, as the paper). The
     # selector always learns from every success: its clusters describe all the modes collection found.
     predictor_samplers: tuple[str, ...] = ()
@@ -96,6 +99,8 @@ class TrainConfig:
             raise ValueError(f"served_draws must be >= 1, got {self.served_draws}")
         if self.mode_contrast < 0.0:
             raise ValueError(f"mode_contrast must be >= 0 (0: off), got {self.mode_contrast}")
+        if self.conditioning_lr_scale <= 0.0:
+            raise ValueError(f"conditioning_lr_scale must be > 0 (1: the phase's rate), got {self.conditioning_lr_scale}")
 
     def phase(self, name: str) -> PhaseConfig:
         return getattr(self, f"{name}_phase")

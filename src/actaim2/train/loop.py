@@ -33,7 +33,7 @@ import torch
 from tqdm import tqdm
 
 from actaim2.data.storage import object_of, sampler_of
-from actaim2.models.predictor import ActionPredictor, PredictorConfig, proprio_features
+from actaim2.models.predictor import CONDITIONING_LAYERS, ActionPredictor, PredictorConfig, proprio_features
 from actaim2.models.registry import build_selector
 from actaim2.models.selector_base import ModeSelector
 from actaim2.models.augment import augment
@@ -128,8 +128,8 @@ class Trainer:
             if policy.predictor.config.conditioning == "add":
                 # FiLM or query layers added to an "add" predictor start as initialised here, which
                 # keeps the parent's outputs; every other key must come from the parent
-                added = ("film.", "query.", "key.")
-                state = {**{k: v for k, v in self.predictor.state_dict().items() if k.startswith(added)}, **state}
+                state = {**{k: v for k, v in self.predictor.state_dict().items() if k.startswith(CONDITIONING_LAYERS)},
+                         **state}
             checkpoint.load_state(self.predictor, state, "predictor")
         if policy.selector is not None and type(policy.selector) is type(self.selector):
             checkpoint.load_state(self.selector, policy.selector.state_dict(), "selector")
@@ -255,6 +255,23 @@ class Trainer:
     def _modules(self, phase: str) -> list[torch.nn.Module]:
         return {"selector": [self.selector], "predictor": [self.predictor], "joint": [self.selector, self.predictor]}[phase]
 
+    def _param_groups(self, phase: str) -> list[dict]:
+        """The optimiser's parameter groups: the predictor's conditioning layers (FiLM, the mode query) apart when
+        ``config.conditioning_lr_scale`` is not 1.
+
+        Why: continued from an "add" predictor those layers start at zero, where the continuation's small
+        learning rate left them: after 10 epochs the mode query's projection was still ~10x below a freshly
+        initialised layer's weights (docs/training.md, "The mode query at ten times the learning rate").
+        """
+        named = [(n, p) for m in self._modules(phase) for n, p in m.named_parameters() if p.requires_grad]
+        scale = self.config.conditioning_lr_scale
+        own = {id(p) for n, p in self.predictor.named_parameters() if n.startswith(CONDITIONING_LAYERS)}
+        conditioning = [p for _, p in named if id(p) in own]
+        if scale == 1.0 or not conditioning:
+            return [{"params": [p for _, p in named], "lr_scale": 1.0}]
+        return [{"params": [p for _, p in named if id(p) not in own], "lr_scale": 1.0},
+                {"params": conditioning, "lr_scale": scale}]
+
     def _run_phase(self, phase: str) -> PhaseResult:
         cfg = self.config.phase(phase)
         items = self._items(phase, self.train)
@@ -263,7 +280,7 @@ class Trainer:
         steps_per_epoch = max(1, math.ceil(len(items) / cfg.batch_size))
         total = max(1, int(round(cfg.epochs * steps_per_epoch)))
         params = [p for m in self._modules(phase) for p in m.parameters() if p.requires_grad]
-        optimizer = torch.optim.AdamW(params, lr=cfg.lr, weight_decay=cfg.weight_decay)
+        optimizer = torch.optim.AdamW(self._param_groups(phase), lr=cfg.lr, weight_decay=cfg.weight_decay)
         if self.optimizer_state is not None:
             optimizer.load_state_dict(self.optimizer_state)
         wrapped = {m: wrap(m, self.ctx) for m in self._modules(phase)}
@@ -284,7 +301,8 @@ class Trainer:
             rng = np.random.default_rng([self.config.seed, self.config.phases.index(phase), self.step])
             batch_items = items[rng.choice(len(items), size=min(cfg.batch_size, len(items)), replace=False)]
             for group in optimizer.param_groups:
-                group["lr"] = learning_rate(self.step, total, cfg.lr, cfg.warmup_fraction, cfg.final_lr_fraction)
+                group["lr"] = group.get("lr_scale", 1.0) * learning_rate(self.step, total, cfg.lr, cfg.warmup_fraction,
+                                                                         cfg.final_lr_fraction)
             self.temperature = gumbel_temperature(self.step / steps_per_epoch)
             loss, metrics = self.loss(phase, self.train, rank_slice(batch_items, self.ctx), wrapped, rng)
             optimizer.zero_grad(set_to_none=True)
