@@ -1,4 +1,4 @@
-"""What the 2nd mode's group did on half B: the counts behind the 2nd-mode SSR."""
+"""What the 2nd mode's group did on half B: the counts behind the 2nd-mode SSR, and what an unselected group scores."""
 from __future__ import annotations
 
 from actaim2.eval.tables import SECOND_MODE_OUTCOMES, mode_cells, report, second_mode_table
@@ -24,9 +24,11 @@ def test_second_mode_table_counts_the_half_b_samples_the_mode_ssr_counts() -> No
     header, rule, row = second_mode_table(RECORDS, ["actaim2"])
     cells = [c.strip() for c in row.split("|")[1:-1]]
     assert cells[:2] == ["ActAIM2", "Seen objects"]
-    counts = dict(zip(SECOND_MODE_OUTCOMES, (int(c.split()[0]) for c in cells[2:])))
+    counts = dict(zip(SECOND_MODE_OUTCOMES, (int(c.split()[0]) for c in cells[2:-1])))
     assert counts == {"2nd mode": 1, "1st mode": 0, "another mode": 0, "failed": 1, "no 2nd mode on the object": 2}
     second = mode_cells(RECORDS, 2)["actaim2", "train_seen", "AVG", 2]
     assert (second.successes, second.trials) == (counts["2nd mode"], sum(counts.values()))
-    assert header.count("|") == rule.count("|")
+    # Chance: door_000's half B holds 1 opening in 4 samples, times its chosen group's 2; door_001 none: 0.5 of 4.
+    assert cells[-1] == "12.5 %"
+    assert header.count("|") == rule.count("|") == row.count("|")
     assert "## What the 2nd mode's group did on half B" in report(RECORDS, ["actaim2"], ["# header"])

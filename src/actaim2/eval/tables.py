@@ -140,7 +140,10 @@ def second_mode_table(records: Sequence[dict], methods: list[str]) -> list[str]:
 
     Why: a low 2nd-mode SSR has different causes - the chosen group fails (the predictor's skill),
     it executes the 1st mode (the groups do not separate the modes), or the object showed one
-    mode only (its half-B samples count as 0). The counts say which.
+    mode only (its half-B samples count as 0). The counts say which. The last column is what a group
+    that selects nothing would score: per object, the share of *all* its half-B samples that executed
+    its 2nd mode, in place of the chosen group's (pooled with the same weights). A 2nd-mode SSR near
+    it says the groups add nothing to the row's base rate of that mode, whatever the interval.
     """
     split_of = {(r["method"], r["object"]): r["split"] for r in records}
     half_b: dict[tuple[str, str], list[dict]] = defaultdict(list)
@@ -148,6 +151,7 @@ def second_mode_table(records: Sequence[dict], methods: list[str]) -> list[str]:
         if r.get("group", -1) >= 0 and r["repetition"] % 2 == 1:
             half_b[r["method"], r["object"]].append(r)
     counts: dict[tuple[str, str], dict[str, int]] = defaultdict(lambda: dict.fromkeys(SECOND_MODE_OUTCOMES, 0))
+    chance: dict[tuple[str, str], float] = defaultdict(float)  # expected 2nd-mode successes of an unselected group
     for (method, obj), (first, second) in object_modes(records, 2).items():
         tally = counts[method, split_of[method, obj]]
         if second.mode is None:  # counted as the Mode SSR counts it: 0 of its per-group half-B samples
@@ -157,13 +161,18 @@ def second_mode_table(records: Sequence[dict], methods: list[str]) -> list[str]:
             mode = tuple(r["mode"]) if r["mode"] else None
             tally["failed" if mode is None else "2nd mode" if mode == second.mode else "1st mode" if mode == first.mode
                   else "another mode"] += 1
-    lines = ["| method | split | " + " | ".join(SECOND_MODE_OUTCOMES) + " |", "|---" * (len(SECOND_MODE_OUTCOMES) + 2) + "|"]
+        every = half_b[method, obj]
+        share = sum(r["mode"] is not None and tuple(r["mode"]) == second.mode for r in every) / len(every)
+        chance[method, split_of[method, obj]] += share * second.rate.trials
+    columns = SECOND_MODE_OUTCOMES + ("2nd mode in any group (chance)",)
+    lines = ["| method | split | " + " | ".join(columns) + " |", "|---" * (len(columns) + 2) + "|"]
     for m in methods:
         for split in (s for s in _splits(records) if (m, s) in counts):
             tally = counts[m, split]
             total = max(1, sum(tally.values()))
             lines.append(f"| {METHODS[m].title} | {SPLIT_TITLES[split]} | "
-                         + " | ".join(f"{tally[k]} ({100 * tally[k] / total:.0f} %)" for k in SECOND_MODE_OUTCOMES) + " |")
+                         + " | ".join(f"{tally[k]} ({100 * tally[k] / total:.0f} %)" for k in SECOND_MODE_OUTCOMES)
+                         + f" | {100 * chance[m, split] / total:.1f} % |")
     return lines
 
 
