@@ -24,7 +24,7 @@ ONE_STEP = dataclasses.replace(TINY, phases=("predictor",), predictor={**TINY.pr
                                predictor_phase=PhaseConfig(epochs=1e-3, warmup_fraction=0.0, weight_decay=0.0))
 
 
-def _moved_by_one_step(scale: float, tmp_path) -> tuple[Trainer, dict[str, torch.Tensor]]:
+def _moved_by_one_step(scale: float, tmp_path) -> tuple[Trainer, dict[str, float]]:
     data, _ = make_dataset(6, resolution=32, seed=1)
     torch.manual_seed(0)
     trainer = Trainer(dataclasses.replace(ONE_STEP, conditioning_lr_scale=scale), data, None, PLACEMENT,
@@ -46,7 +46,7 @@ def test_the_conditioning_layers_move_scale_times_as_far_and_the_rest_alike(tmp_
     assert plain["key.weight"] == scaled["key.weight"] == 0  # no gradient while the query is still at zero
     for name in plain.keys() - set(conditioning):
         assert scaled[name] == pytest.approx(plain[name], rel=1e-3, abs=1e-9), name
-    assert len(plain_trainer._param_groups("predictor")) == 1
-    groups = scaled_trainer._param_groups("predictor")
+    assert len(plain_trainer._param_groups(list(plain_trainer.predictor.parameters()))) == 1
+    groups = scaled_trainer._param_groups(list(scaled_trainer.predictor.parameters()))
     assert [g["lr_scale"] for g in groups] == [1.0, 10.0] and len(groups[1]["params"]) == len(conditioning)
-    assert len(scaled_trainer._param_groups("selector")) == 1  # the selector has no conditioning layers
+    assert len(scaled_trainer._param_groups(list(scaled_trainer.selector.parameters()))) == 1  # no conditioning layers

@@ -164,7 +164,7 @@ def second_mode_table(records: Sequence[dict], methods: list[str]) -> list[str]:
         every = half_b[method, obj]
         share = sum(r["mode"] is not None and tuple(r["mode"]) == second.mode for r in every) / len(every)
         chance[method, split_of[method, obj]] += share * second.rate.trials
-    columns = SECOND_MODE_OUTCOMES + ("2nd mode in any group (chance)",)
+    columns = SECOND_MODE_OUTCOMES + ("2nd mode of an unselected group (chance)",)
     lines = ["| method | split | " + " | ".join(columns) + " |", "|---" * (len(columns) + 2) + "|"]
     for m in methods:
         for split in (s for s in _splits(records) if (m, s) in counts):

@@ -255,21 +255,20 @@ class Trainer:
     def _modules(self, phase: str) -> list[torch.nn.Module]:
         return {"selector": [self.selector], "predictor": [self.predictor], "joint": [self.selector, self.predictor]}[phase]
 
-    def _param_groups(self, phase: str) -> list[dict]:
-        """The optimiser's parameter groups: the predictor's conditioning layers (FiLM, the mode query) apart when
-        ``config.conditioning_lr_scale`` is not 1.
+    def _param_groups(self, params: list[torch.nn.Parameter]) -> list[dict]:
+        """The optimiser's groups of a phase's ``params``: the predictor's conditioning layers (FiLM, the mode
+        query) apart when ``config.conditioning_lr_scale`` is not 1.
 
         Why: continued from an "add" predictor those layers start at zero, where the continuation's small
         learning rate left them: after 10 epochs the mode query's projection was still ~10x below a freshly
         initialised layer's weights (docs/training.md, "The mode query at ten times the learning rate").
         """
-        named = [(n, p) for m in self._modules(phase) for n, p in m.named_parameters() if p.requires_grad]
         scale = self.config.conditioning_lr_scale
         own = {id(p) for n, p in self.predictor.named_parameters() if n.startswith(CONDITIONING_LAYERS)}
-        conditioning = [p for _, p in named if id(p) in own]
+        conditioning = [p for p in params if id(p) in own]
         if scale == 1.0 or not conditioning:
-            return [{"params": [p for _, p in named], "lr_scale": 1.0}]
-        return [{"params": [p for _, p in named if id(p) not in own], "lr_scale": 1.0},
+            return [{"params": params, "lr_scale": 1.0}]
+        return [{"params": [p for p in params if id(p) not in own], "lr_scale": 1.0},
                 {"params": conditioning, "lr_scale": scale}]
 
     def _run_phase(self, phase: str) -> PhaseResult:
@@ -280,7 +279,7 @@ class Trainer:
         steps_per_epoch = max(1, math.ceil(len(items) / cfg.batch_size))
         total = max(1, int(round(cfg.epochs * steps_per_epoch)))
         params = [p for m in self._modules(phase) for p in m.parameters() if p.requires_grad]
-        optimizer = torch.optim.AdamW(self._param_groups(phase), lr=cfg.lr, weight_decay=cfg.weight_decay)
+        optimizer = torch.optim.AdamW(self._param_groups(params), lr=cfg.lr, weight_decay=cfg.weight_decay)
         if self.optimizer_state is not None:
             optimizer.load_state_dict(self.optimizer_state)
         wrapped = {m: wrap(m, self.ctx) for m in self._modules(phase)}
