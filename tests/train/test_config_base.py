@@ -142,3 +142,9 @@ def test_mode_query_lr_is_the_weight_16_step_but_for_the_conditioning_layers_rat
 def test_a_conditioning_lr_scale_of_zero_is_refused():
     with pytest.raises(ValueError, match="conditioning_lr_scale must be > 0"):
         TrainConfig.from_dict({"conditioning_lr_scale": 0.0})
+
+
+def test_cluster_information_is_the_cluster_balance_run_but_for_the_confidence_term():
+    balance, step = load_config("cluster_balance"), load_config("cluster_information")
+    assert balance.phases == ("selector",) and balance.elbo.cluster_balance == 1.0 and balance.elbo.cluster_confidence == 0.0
+    assert dataclasses.replace(step, elbo=dataclasses.replace(step.elbo, cluster_confidence=0.0)) == balance

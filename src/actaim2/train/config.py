@@ -34,6 +34,12 @@ class ElboWeights:
     # Not an ELBO term: reconstruction along the sampling path (c relaxed by Gumbel-softmax ->
     # x ~ p(x | y, c, O) -> eps), so that eps sampled from a cluster decodes like the data.
     generative: float = 1.0
+    # Not an ELBO term either: log K - H(batch mean of q(c)), so that the posterior uses the K clusters
+    # (train/elbo.py cluster_imbalance; 0: off, the paper).
+    cluster_balance: float = 0.0
+    # With it, the mean entropy of each trajectory's q(c): together they maximise the batch's mutual information
+    # of cluster and data (IMSAT, Hu et al. 2017), so clusters are both used and told apart (0: off, the paper).
+    cluster_confidence: float = 0.0
 
 
 @dataclass(frozen=True)

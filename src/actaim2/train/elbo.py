@@ -22,6 +22,8 @@ batch split over DDP ranks averages to the full-batch loss.
 """
 from __future__ import annotations
 
+import math
+
 import torch
 
 from actaim2.models.baselines.cvae import CVAEOutput, CVAESelector
@@ -52,12 +54,30 @@ def cgmvae_loss(out: CGMVAEOutput, eps: torch.Tensor, w: ElboWeights) -> tuple[t
     kl_y = gaussian_kl(out.y_mean, out.y_logvar, torch.zeros_like(out.y_mean), torch.zeros_like(out.y_logvar))
     kl_c = categorical_kl(out.log_qc, out.log_pi)
     generative = reconstruction(out.eps_generated, eps)
-    loss = (w.reconstruction * rec + w.x_prior * kl_x + w.y_prior * kl_y + w.c_prior * kl_c + w.generative * generative).mean()
+    balance = cluster_imbalance(out.log_qc)
+    doubt = -(qc * out.log_qc).sum(dim=-1)  # H(q(c | x, y, O)) per trajectory
+    loss = (w.reconstruction * rec + w.x_prior * kl_x + w.y_prior * kl_y + w.c_prior * kl_c + w.generative * generative
+            + w.cluster_confidence * doubt).mean()
+    loss = loss + w.cluster_balance * balance
     return loss, {
         "reconstruction": rec.mean().item(), "kl_x": kl_x.mean().item(), "kl_y": kl_y.mean().item(),
-        "kl_c": kl_c.mean().item(), "generative": generative.mean().item(),
+        "kl_c": kl_c.mean().item(), "generative": generative.mean().item(), "cluster_imbalance": balance.item(),
+        "cluster_entropy": doubt.mean().item(),
         "clusters_used": int(torch.unique(out.log_qc.argmax(-1)).numel()),
     }
+
+
+def cluster_imbalance(log_qc: torch.Tensor) -> torch.Tensor:
+    """log K - H(the batch's mean q(c | x, y, O)): 0 when a batch spreads over the K clusters equally, log K when
+    every trajectory goes to one.
+
+    Why (``ElboWeights.cluster_balance``): nothing in the ELBO stops the posterior from putting almost every
+    trajectory in one cluster (81f01112: 329 of 382), and a cluster that receives none gets little of the
+    x-prior and generative gradient, so its draws decode near the centre of an object's eps and the predictor
+    turns all clusters into one outcome (docs/training.md, "A selector whose clusters are all used").
+    """
+    mean = torch.exp(log_qc).mean(dim=0)
+    return math.log(log_qc.shape[-1]) + (mean * torch.log(mean.clamp_min(1e-12))).sum()
 
 
 def cvae_loss(out: CVAEOutput, eps: torch.Tensor, w: ElboWeights) -> tuple[torch.Tensor, dict[str, float]]:
