@@ -148,3 +148,9 @@ def test_cluster_information_is_the_cluster_balance_run_but_for_the_confidence_t
     balance, step = load_config("cluster_balance"), load_config("cluster_information")
     assert balance.phases == ("selector",) and balance.elbo.cluster_balance == 1.0 and balance.elbo.cluster_confidence == 0.0
     assert dataclasses.replace(step, elbo=dataclasses.replace(step.elbo, cluster_confidence=0.0)) == balance
+
+
+def test_cluster_information_10_is_the_same_run_at_ten_times_both_weights():
+    one, ten = load_config("cluster_information"), load_config("cluster_information_10")
+    assert (ten.elbo.cluster_balance, ten.elbo.cluster_confidence) == (10.0, 10.0)
+    assert dataclasses.replace(ten, elbo=one.elbo) == one
