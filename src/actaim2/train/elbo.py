@@ -19,6 +19,12 @@ Weights default to 1 (the paper's ELBO); the authors' code used 2 / 3 / 3 (recon
 Gaussian / categorical), available through the YAML configuration.
 All terms are summed over latent / embedding dimensions and averaged over the batch, so a
 batch split over DDP ranks averages to the full-batch loss.
+Two optional terms, not the paper's (weights 0 by default; docs/training.md, "A selector whose
+clusters are all used"):
+    cluster balance     log K - H(mean over the batch of q(c|x,y,O))
+    cluster confidence  H(q(c|x,y,O)) per sample
+The balance is a function of the whole batch: under DDP each rank takes its own share's, so the
+ranks' average is not the full batch's (exact on one process, the CPU runs it was measured with).
 """
 from __future__ import annotations
 
