@@ -83,7 +83,7 @@ def cluster_imbalance(log_qc: torch.Tensor) -> torch.Tensor:
     turns all clusters into one outcome (docs/training.md, "A selector whose clusters are all used").
     """
     mean = torch.exp(log_qc).mean(dim=0)
-    return math.log(log_qc.shape[-1]) + (mean * torch.log(mean.clamp_min(1e-12))).sum()
+    return categorical_kl(torch.log(mean.clamp_min(1e-12)), torch.full_like(mean, -math.log(len(mean))))  # KL to uniform
 
 
 def cvae_loss(out: CVAEOutput, eps: torch.Tensor, w: ElboWeights) -> tuple[torch.Tensor, dict[str, float]]:
