@@ -117,6 +117,7 @@ def test_train_command_runs_all_phases_and_writes_loadable_checkpoints(dataset, 
             assert 0.0 <= figures["rotation_median_deg"] <= figures["rotation_p90_deg"] <= 180.0
     assert 0 <= report["mode_chain"]["trajectories"] <= 11 and set(report["outcome_following"]) <= {"init", "reach", "grasp", "manipulate"}
     assert set(report["drawn_following"]) <= {"reach", "manipulate"}
+    assert set(report["swapped_following"]) == set(report["drawn_following"])  # the same keyframes, two questions
     text = (out / "validation.md").read_text()
     assert (out / "curves.png").stat().st_size > 10_000 and "| true z" in text and "| MANIPULATE | 11 |" in text
     assert "Mode chain" in text

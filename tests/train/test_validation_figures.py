@@ -1,6 +1,7 @@
 """`actaim2 validate`'s action figures decode each predictor as it serves: a single-view one
 through its view's heatmap and depth cells, a five-view one through all five views. Its outcome
-figures tell keyposes that follow eps's outcome from keyposes placed by the scene alone."""
+figures tell keyposes that follow eps's outcome from keyposes placed by the scene alone, and fed
+another outcome's eps, a predictor that reads eps from one that ignores it."""
 from __future__ import annotations
 
 import dataclasses
@@ -15,7 +16,8 @@ from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer
 from actaim2.data.storage import trajectory_outcome
 from actaim2.train.validation import (DRAWN_FOLLOWING_PHASES, EMBEDDINGS, action_figures, drawn_following, label_mode_ssr,
-                                     mode_chain_figures, outcome_figures, outcome_rates, predict_keyframes)
+                                     mode_chain_figures, outcome_figures, outcome_rates, predict_keyframes, swap_rates,
+                                     swapped_following)
 from synthetic import PLACEMENT, make_dataset
 from test_stop_gradient import TINY
 
@@ -125,3 +127,39 @@ def test_drawn_following_feeds_each_keyframe_one_draw_per_cluster(tmp_path, kind
         assert f.keyframes == int((phases == PHASES.index(name)).sum())
         assert 0.0 <= f.follows_named_outcome <= 1.0 and 0.0 <= f.shuffled <= 1.0
         assert 1.0 <= f.distinct_outcomes <= 2.0  # two outcomes in the data
+
+
+def test_swap_rates_count_a_point_that_moves_to_the_partners_outcome():
+    frames, target, objects, outcomes = _follow_case()
+    partner = np.array([4, 4, 5, 5, 0, 1, -1, -1])  # object b has no partner: not scored
+    swapped = target[partner]  # each point lands on its partner's demonstration
+    reads = swap_rates(target, swapped, target, frames, objects, outcomes, partner)["reach"]
+    assert reads.keyframes == 6 and reads.moved_median_mm == pytest.approx(1000.0)
+    assert (reads.own_outcome_own_eps, reads.own_outcome_swapped) == (1.0, 0.0)
+    assert (reads.partner_outcome_own_eps, reads.partner_outcome_swapped) == (0.0, 1.0)
+    ignores = swap_rates(target, target, target, frames, objects, outcomes, partner)["reach"]  # the point stays
+    assert ignores.moved_median_mm == 0.0 and ignores.partner_outcome_swapped == ignores.partner_outcome_own_eps == 0.0
+    assert swap_rates(target, swapped, target, frames, objects, outcomes, np.full(8, -1)) == {}
+
+
+@pytest.mark.parametrize("blind", [False, True])
+def test_swapped_following_feeds_a_partners_eps_and_a_blind_predictor_does_not_move(tmp_path, blind):
+    data, modes = make_dataset(24, resolution=32, seed=7)
+    trainer = Trainer(TINY, data, None, PLACEMENT, perception_record({"synthetic": 1}), "synthetic", tmp_path,
+                      init_distributed("cpu"), show_progress=False)
+    if blind:  # eps no longer reaches the tokens: the same point whatever eps is fed
+        with torch.no_grad():
+            trainer.predictor.condition[0].weight[:, :trainer.predictor.config.embedding_dim] = 0.0
+    objects, outcomes = ["o"] * len(data), ["0+" if m else "0-" for m in modes]
+    predictions = predict_keyframes(trainer.selector, trainer.predictor, data, PLACEMENT, torch.device("cpu"))
+    swapped = swapped_following(trainer.selector, trainer.predictor, data, PLACEMENT, predictions, objects, outcomes,
+                                torch.device("cpu"))
+    phases = predictions.frames[:, 1]
+    assert set(swapped) == {name for name in DRAWN_FOLLOWING_PHASES if (phases == PHASES.index(name)).any()}
+    for name, f in swapped.items():
+        assert f.keyframes == int((phases == PHASES.index(name)).sum())
+        if blind:
+            assert f.moved_median_mm == 0.0
+            assert (f.partner_outcome_swapped, f.own_outcome_swapped) == (f.partner_outcome_own_eps, f.own_outcome_own_eps)
+        else:  # an untrained predictor reads eps a little: its point moves
+            assert f.moved_median_mm > 0.0

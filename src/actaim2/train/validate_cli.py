@@ -7,7 +7,8 @@ Examples:
 
 Writes into the run folder: ``curves.png`` (training and validation curves from
 ``history.jsonl``; a folder without it, e.g. for a shipped checkpoint, gets none), ``validation.json`` and ``validation.md`` (translation, rotation and gripper
-errors of the predictor, whether its keyposes follow the outcome eps names, the selector's
+errors of the predictor, whether its keyposes follow the outcome eps names (its own, drawn, or
+another trajectory's), the selector's
 reconstruction error and cluster usage on the visually-labelled successes of ``--split``; see
 actaim2.train.validation).
 """
@@ -38,7 +39,7 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.train.data import dataset_digest, ensure_cache, open_cache
     from actaim2.train.distributed import choose_device
     from actaim2.train.validation import action_figures, drawn_following, markdown, mode_chain_figures, outcome_figures, \
-        predict_keyframes, selector_figures
+        predict_keyframes, selector_figures, swapped_following
 
     stem = args.checkpoint or args.run / "policy"
     args.run.mkdir(parents=True, exist_ok=True)
@@ -66,14 +67,16 @@ def main(args: argparse.Namespace) -> int:
     follow = outcome_figures(predictions, objects, outcomes)
     chain = mode_chain_figures(policy.selector, data, objects, outcomes, device)
     drawn = drawn_following(policy.selector, policy.predictor, data, placement, predictions, objects, outcomes, device)
+    swapped = swapped_following(policy.selector, policy.predictor, data, placement, predictions, objects, outcomes, device)
     digest = policy.meta.get("weights_sha256")
     report = {"checkpoint": str(stem), "weights_sha256": digest, "dataset": str(args.data),
               "dataset_digest": dataset_digest(args.data), "split": args.split,
               "actions": {k: {p: dataclasses.asdict(f) for p, f in v.items()} for k, v in actions.items()}, "selector": selector,
               "outcome_following": {p: dataclasses.asdict(f) for p, f in follow.items()},
-              "drawn_following": {p: dataclasses.asdict(f) for p, f in drawn.items()}, "mode_chain": dataclasses.asdict(chain)}
+              "drawn_following": {p: dataclasses.asdict(f) for p, f in drawn.items()},
+              "swapped_following": {p: dataclasses.asdict(f) for p, f in swapped.items()}, "mode_chain": dataclasses.asdict(chain)}
     (args.run / "validation.json").write_text(json.dumps(report, indent=2) + "\n")
-    text = markdown(args.split, actions, selector, follow, chain, drawn)
+    text = markdown(args.split, actions, selector, follow, chain, drawn, swapped)
     (args.run / "validation.md").write_text(text)
     print(text)
     written = [args.run / "validation.json", args.run / "validation.md"]

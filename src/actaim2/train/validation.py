@@ -31,6 +31,13 @@ point's nearest other demonstration have it? Against the same with the names shu
 keyframe's draws, and with the number of distinct outcomes the K points reach. Why: fed true eps the
 predictor may follow outcomes that the selector's draws, lying closer together, never reach.
 
+Outcome following with another outcome's eps (``swapped_following``): at the same phases, each
+keyframe is fed, on its own views, the true eps of a trajectory of the same object with another
+outcome (its partner, drawn at random). How far does the point move, and does its nearest other
+demonstration now have the partner's outcome more often, and its own less? Why: it tells a predictor
+that reads eps but is served draws too alike to move it from one that places keyposes by the views
+alone (a point that does not move; both rates unchanged).
+
 The links before it, on the same objects (``mode_chain_figures``): does eps name the outcome at
 all (the outcome of each trajectory's nearest other true eps, leave-one-out, against the
 majority), and do the clusters select outcomes (eps drawn from each cluster on the object's
@@ -181,21 +188,16 @@ def drawn_following(selector: ModeSelector, predictor: ActionPredictor, data: Tr
         return {}
     objects, outcomes = np.asarray(objects), np.asarray(outcomes)
     frames, target = predictions.frames, predictions.truth[:, :3]
-    trajectory, phase = frames[:, 0], frames[:, 1]
+    trajectory = frames[:, 0]
     k = selector.config.clusters
     generator = torch.Generator(device=device).manual_seed(seed)
     shuffle = np.random.default_rng(seed)
     true = selector.standardise(torch.from_numpy(np.asarray(data.z)).to(device))
     result: dict[str, DrawnFollowing] = {}
     for name in DRAWN_FOLLOWING_PHASES:
-        index = PHASES.index(name)
         hits, shuffled, distinct = [], [], []
-        for row in np.flatnonzero(phase == index):
-            obj = objects[trajectory[row]]
-            others = np.flatnonzero((phase == index) & (objects[trajectory] == obj) & (trajectory != trajectory[row]))
-            if len(set(outcomes[trajectory[others]])) < 2:
-                continue
-            rows = np.flatnonzero(objects == obj)
+        for row, others in _scored_rows(frames, objects, outcomes, PHASES.index(name)):
+            rows = np.flatnonzero(objects == objects[trajectory[row]])
             batch = data.keyframe_batch(frames[row : row + 1], device)
             drawn = torch.cat([selector.sample(batch["init_views"], c, generator).eps for c in range(k)])
             named = outcomes[rows[nearest_true(drawn, true[rows])]]
@@ -212,6 +214,63 @@ def drawn_following(selector: ModeSelector, predictor: ActionPredictor, data: Tr
     return result
 
 
+@dataclass(frozen=True)
+class SwappedFollowing:
+    keyframes: int
+    moved_median_mm: float  # how far the point moves when fed the partner's eps instead of its own
+    partner_outcome_own_eps: float  # the point's nearest other demonstration has the partner's outcome, own eps fed
+    partner_outcome_swapped: float  # the same, the partner's eps fed
+    own_outcome_own_eps: float  # ... has the keyframe's own outcome, own eps fed
+    own_outcome_swapped: float  # the same, the partner's eps fed
+
+
+@torch.no_grad()
+def swapped_following(selector: ModeSelector, predictor: ActionPredictor, data: TrainingData, placement: CubePlacement,
+                      predictions: KeyframePredictions, objects: Sequence[str], outcomes: Sequence[str],
+                      device: torch.device, seed: int = 0, batch_size: int = 16) -> dict[str, SwappedFollowing]:
+    """Per phase of ``DRAWN_FOLLOWING_PHASES``: fed another outcome's true eps on its own views, where does
+    each keyframe's point go (module docstring)? ``predictions`` gives the points fed the own true eps."""
+    objects, outcomes = np.asarray(objects), np.asarray(outcomes)
+    frames, trajectory = predictions.frames, predictions.frames[:, 0]
+    rng = np.random.default_rng(seed)
+    partner = np.full(len(frames), -1)
+    for name in DRAWN_FOLLOWING_PHASES:
+        for row, _ in _scored_rows(frames, objects, outcomes, PHASES.index(name)):
+            t = trajectory[row]
+            partner[row] = rng.choice(np.flatnonzero((objects == objects[t]) & (outcomes != outcomes[t])))
+    swapped = np.full((len(frames), 3), np.nan)
+    rows = np.flatnonzero(partner >= 0)
+    true = selector.standardise(torch.from_numpy(np.asarray(data.z)).to(device))
+    for chunk in np.array_split(rows, max(1, math.ceil(len(rows) / batch_size))):
+        if len(chunk) == 0:
+            continue
+        batch = data.keyframe_batch(frames[chunk], device)
+        out = predictor(batch["views"], true[partner[chunk]], proprio_features(batch["gripper"], batch["phase"]))
+        swapped[chunk] = decode_action(out, placement, predictor.config.view_index,
+                                       predictor.config.decode_sigma_px).position.cpu().numpy()
+    return swap_rates(predictions.position["true"], swapped, predictions.truth[:, :3], frames, objects, outcomes, partner)
+
+
+def swap_rates(own: np.ndarray, swapped: np.ndarray, target: np.ndarray, frames: np.ndarray, objects: np.ndarray,
+               outcomes: np.ndarray, partner: np.ndarray) -> dict[str, SwappedFollowing]:
+    """The figures from the points (K, 3) predicted with the own and the partner's eps; ``partner`` (K,) is the
+    partner trajectory of each keyframe, -1 where none was fed (those rows are not scored)."""
+    outcome = outcomes[frames[:, 0]]
+    result: dict[str, SwappedFollowing] = {}
+    for index, name in enumerate(PHASES):
+        scored = [(row, others) for row, others in _scored_rows(frames, objects, outcomes, index) if partner[row] >= 0]
+        if not scored:
+            continue
+        moved, rates = [], []
+        for row, others in scored:
+            reached = [_nearest_outcome(at, target[others], outcome[others]) for at in (own[row], swapped[row])]
+            rates.append([reached[0] == outcomes[partner[row]], reached[1] == outcomes[partner[row]],
+                          reached[0] == outcome[row], reached[1] == outcome[row]])
+            moved.append(1000.0 * np.linalg.norm(swapped[row] - own[row]))
+        result[name] = SwappedFollowing(len(scored), float(np.median(moved)), *map(float, np.mean(rates, axis=0)))
+    return result
+
+
 def _nearest_outcome(point: np.ndarray, targets: np.ndarray, outcomes: np.ndarray) -> str:
     """The outcome of the demonstration whose point (of ``targets``) lies nearest ``point``."""
     return outcomes[np.argmin(np.linalg.norm(targets - point, axis=1))]
@@ -223,18 +282,26 @@ def _is_most_frequent(outcome: str, others: np.ndarray) -> bool:
     return bool(values[np.argmax(counts)] == outcome)
 
 
+def _scored_rows(frames: np.ndarray, objects: np.ndarray, outcomes: np.ndarray, index: int):
+    """(row, others) for each keyframe of phase ``index`` whose other demonstrations (same object and
+    keypose, other trajectories; ``others`` their rows) show two or more outcomes: the keyframes an
+    outcome-following figure can score. ``objects`` and ``outcomes`` are per trajectory."""
+    trajectory, phase = frames[:, 0], frames[:, 1]
+    obj = objects[trajectory]
+    for row in np.flatnonzero(phase == index):
+        others = np.flatnonzero((phase == index) & (obj == obj[row]) & (trajectory != trajectory[row]))
+        if len(set(outcomes[trajectory[others]])) >= 2:
+            yield row, others
+
+
 def outcome_rates(point: np.ndarray, target: np.ndarray, frames: np.ndarray, objects: np.ndarray,
                   outcomes: np.ndarray) -> dict[str, OutcomeFigures]:
     """The figures from predicted and demonstrated points (K, 3) of keyframes (K, 2) [trajectory, phase]."""
-    trajectory, phase = frames[:, 0], frames[:, 1]
-    obj, outcome = objects[trajectory], outcomes[trajectory]
+    outcome = outcomes[frames[:, 0]]
     result: dict[str, OutcomeFigures] = {}
     for index, name in enumerate(PHASES):
         hits, majority, ceiling = [], [], []
-        for row in np.flatnonzero(phase == index):
-            others = np.flatnonzero((phase == index) & (obj == obj[row]) & (trajectory != trajectory[row]))
-            if len(set(outcome[others])) < 2:
-                continue
+        for row, others in _scored_rows(frames, objects, outcomes, index):
             for scores, at in ((hits, point[row]), (ceiling, target[row])):
                 scores.append(_nearest_outcome(at, target[others], outcome[others]) == outcome[row])
             majority.append(_is_most_frequent(outcome[row], outcome[others]))
@@ -326,7 +393,8 @@ def selector_figures(selector: ModeSelector, data: TrainingData, device: torch.d
 
 
 def markdown(split: str, actions: dict[str, dict[str, ActionFigures]], selector: dict,
-             outcomes: dict[str, OutcomeFigures], chain: ModeChainFigures, drawn: dict[str, DrawnFollowing]) -> str:
+             outcomes: dict[str, OutcomeFigures], chain: ModeChainFigures, drawn: dict[str, DrawnFollowing],
+             swapped: dict[str, SwappedFollowing]) -> str:
     """The figures as the README shows them: over all keyframes, then per keypose phase."""
     lines = [f"Validation on the visually-labelled successes of `{split}` "
              f"({selector['trajectories']} trajectories, {actions['reconstructed']['all'].keyframes} keyframes):", "",
@@ -373,6 +441,16 @@ def markdown(split: str, actions: dict[str, dict[str, ActionFigures]], selector:
         for phase, f in drawn.items():
             lines.append(f"| {phase.upper()} | {f.keyframes} | {100 * f.follows_named_outcome:.1f} % | "
                          f"{100 * f.shuffled:.1f} % | {f.distinct_outcomes:.2f} of {len(selector['posterior']['counts'])} draws |")
+    if swapped:
+        lines += ["", "Outcome following with another outcome's eps (fed, on the keyframe's own views, the true eps of a "
+                  "trajectory of the same object with another outcome, its partner): how far the point moves, and "
+                  "whose outcome its nearest other demonstration has:", "",
+                  "| keypose | keyframes | point moved, median (mm) | partner's outcome, own eps / partner's eps | "
+                  "own outcome, own eps / partner's eps |", "|---|---|---|---|---|"]
+        for phase, f in swapped.items():
+            lines.append(f"| {phase.upper()} | {f.keyframes} | {f.moved_median_mm:.0f} | "
+                         f"{100 * f.partner_outcome_own_eps:.1f} / {100 * f.partner_outcome_swapped:.1f} % | "
+                         f"{100 * f.own_outcome_own_eps:.1f} / {100 * f.own_outcome_swapped:.1f} % |")
     post, prior = selector["posterior"], selector["prior_draws"]
     k = len(post["counts"])
     lines += ["", f"Selector: reconstruction MSE {selector['reconstruction_mse']:.3f} per dimension of standardised eps "
