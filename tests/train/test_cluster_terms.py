@@ -1,5 +1,6 @@
-"""The CGMVAE's cluster-usage terms (ElboWeights.cluster_balance, cluster_confidence): the imbalance is 0 for a batch
-spread equally over the K clusters and log K for one cluster, and the selector loss adds exactly the weighted terms."""
+"""The CGMVAE's cluster-usage terms (ElboWeights.cluster_balance, cluster_confidence, cluster_coverage): the imbalance
+is 0 for a batch spread equally over the K clusters and log K for one cluster; the coverage scores each eps against
+its nearest cluster centre, a fixed hypothesis per cluster; the selector loss adds exactly the weighted terms."""
 from __future__ import annotations
 
 import dataclasses
@@ -11,7 +12,7 @@ import torch
 
 from actaim2.train.checkpoint import perception_record
 from actaim2.train.distributed import init_distributed
-from actaim2.train.elbo import cluster_imbalance, selector_loss
+from actaim2.train.elbo import COVERAGE_RELAXATION, cluster_coverage, cluster_imbalance, selector_loss
 from actaim2.train.loop import Trainer
 from synthetic import PLACEMENT, make_dataset
 from test_stop_gradient import TINY
@@ -42,3 +43,59 @@ def test_the_selector_loss_adds_the_weighted_balance_and_confidence_terms(tmp_pa
     expected = plain.item() + 2.0 * metrics["cluster_imbalance"] + 0.5 * metrics["cluster_entropy"]
     assert both.item() == pytest.approx(expected, rel=1e-5)
     assert again["cluster_imbalance"] == pytest.approx(metrics["cluster_imbalance"])
+
+
+def test_the_coverage_is_the_nearest_draws_distance_relaxed_towards_the_mean():
+    drawn = torch.tensor([[[0.0, 0.0], [3.0, 4.0]]])  # two clusters' draws of one sample
+    at_first = cluster_coverage(drawn, torch.tensor([[0.0, 0.0]]))
+    assert at_first.item() == pytest.approx(COVERAGE_RELAXATION * 25.0 / 2)  # nearest 0, the mean (0 + 25) / 2
+    between = cluster_coverage(drawn, torch.tensor([[3.0, 0.0]]))  # 9 from the first, 16 from the second
+    assert between.item() == pytest.approx((1 - COVERAGE_RELAXATION) * 9.0 + COVERAGE_RELAXATION * 12.5)
+
+
+def test_the_coverage_centres_ignore_the_noise_and_the_loss_adds_the_weighted_term(tmp_path):
+    data, _ = make_dataset(6, resolution=32, seed=1)
+    trainer = Trainer(TINY, data, None, PLACEMENT, perception_record({"synthetic": 1}), "synthetic", tmp_path,
+                      init_distributed("cpu"), show_progress=False)
+    selector = trainer.selector.eval()
+    views, z = data.selector_batch(np.arange(6))
+    eps = selector.standardise(z)
+    noise = selector.draw_noise(6, torch.Generator().manual_seed(7))
+    centres = selector(views, eps, noise, cluster_centres=True).eps_centres
+    k = TINY.selector.clusters
+    assert centres.shape == (6, k, eps.shape[1]) and selector(views, eps, noise).eps_centres is None
+    other = selector.draw_noise(6, torch.Generator().manual_seed(8))  # a cluster is the same hypothesis at every step
+    torch.testing.assert_close(selector(views, eps, other, cluster_centres=True).eps_centres, centres)
+    assert not torch.allclose(centres[:, 0], centres[:, 1])  # one hypothesis per cluster
+    plain, _, metrics = selector_loss(selector, views, eps, TINY.elbo, noise)
+    assert metrics["cluster_coverage"] == 0.0
+    weights = dataclasses.replace(TINY.elbo, cluster_coverage=3.0)
+    covered, _, again = selector_loss(selector, views, eps, weights, noise)
+    assert again["cluster_coverage"] == pytest.approx(cluster_coverage(centres, eps).mean().item(), rel=1e-5)
+    assert covered.item() == pytest.approx(plain.item() + 3.0 * again["cluster_coverage"], rel=1e-5)
+
+
+def test_the_selector_condition_object_feeds_another_trajectorys_o_init_of_the_same_object(tmp_path):
+    data, _ = make_dataset(8, resolution=32, seed=1)
+    data = dataclasses.replace(data, ids=[f"box_{i % 2}-random-{i:05d}" for i in range(8)])  # two objects, rows alternate
+    config = dataclasses.replace(TINY, selector_condition="object")
+    trainer = Trainer(config, data, None, PLACEMENT, perception_record({"synthetic": 1}), "synthetic", tmp_path,
+                      init_distributed("cpu"), show_progress=False)
+    asked: list[np.ndarray] = []
+    batch = trainer.train.selector_batch
+    trainer.train.selector_batch = lambda rows, device="cpu": (asked.append(np.array(rows)), batch(rows, device))[1]
+    rows = np.arange(len(trainer.train))
+    items = np.stack([rows, np.zeros_like(rows)], axis=1)
+    own = np.array(trainer.train.ids)
+    for seed in range(5):
+        trainer.losses("selector", trainer.train, items, rng=np.random.default_rng(seed))
+    targets, conditions = asked[0::2], asked[1::2]  # each batch asks for its z, then for the views it conditions on
+    assert all((t == rows).all() for t in targets)
+    for condition in conditions:
+        assert [i.split("-")[0] for i in own[condition]] == [i.split("-")[0] for i in own[rows]]  # the same object
+    assert any((c != rows).any() for c in conditions)  # and not always the trajectory's own O_init
+    asked.clear()
+    trainer.losses("selector", trainer.train, items)  # no rng: a validation batch, each its own O_init
+    assert all((a == rows).all() for a in asked)
+    with pytest.raises(ValueError, match="selector_condition"):
+        dataclasses.replace(TINY, selector_condition="scene")

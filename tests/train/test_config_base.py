@@ -154,3 +154,13 @@ def test_cluster_information_10_is_the_same_run_at_ten_times_both_weights():
     one, ten = load_config("cluster_information"), load_config("cluster_information_10")
     assert (ten.elbo.cluster_balance, ten.elbo.cluster_confidence) == (10.0, 10.0)
     assert dataclasses.replace(ten, elbo=one.elbo) == one
+
+
+def test_cluster_coverage_and_the_selector_condition_runs_differ_from_cluster_balance_in_their_one_setting():
+    balance = load_config("cluster_balance")
+    coverage, condition, both = (load_config(n) for n in ("cluster_coverage", "selector_condition",
+                                                           "selector_condition_coverage"))
+    plain = dataclasses.replace(balance, elbo=dataclasses.replace(balance.elbo, cluster_balance=0.0))
+    assert coverage.elbo.cluster_coverage == 1.0 and dataclasses.replace(coverage, elbo=plain.elbo) == plain
+    assert condition.selector_condition == "object" and dataclasses.replace(condition, selector_condition="own") == plain
+    assert dataclasses.replace(both, elbo=plain.elbo) == condition and both.elbo == coverage.elbo

@@ -55,6 +55,7 @@ class CGMVAEOutput:
     log_pi: torch.Tensor  # (K,) normalised
     log_qc: torch.Tensor  # (B, K) log q(c | x, y, O)
     eps_generated: torch.Tensor  # (B, eps_size) decoded along the sampling path, c relaxed (Gumbel-softmax)
+    eps_centres: torch.Tensor | None = None  # (B, K, eps_size) each cluster's noise-free draw (y = 0, x = mu_k); when asked
 
 
 class CGMVAE(ModeSelector):
@@ -82,10 +83,12 @@ class CGMVAE(ModeSelector):
         return self.q_x(h), self.q_y(h)
 
     def forward(self, views: torch.Tensor, eps_true: torch.Tensor, noise: dict[str, torch.Tensor] | None = None,
-                temperature: float = 1.0) -> CGMVAEOutput:
+                temperature: float = 1.0, cluster_centres: bool = False) -> CGMVAEOutput:
         """Posterior path of the ELBO for a batch of (O_init views, standardised z), and the
         generative path sampling takes: c relaxed from q(c | x, y, O) at ``temperature``, x drawn
-        from the relaxed mixture of p(x | y, c, O), decoded (its reconstruction trains that path)."""
+        from the relaxed mixture of p(x | y, c, O), decoded (its reconstruction trains that path).
+        ``cluster_centres`` adds each cluster's draw without its noise (``eps_centres``, for the
+        cluster-coverage term of train/elbo.py; K more decoder rows per sample)."""
         tokens, flat = self.condition(views)
         noise = noise if noise is not None else self.draw_noise(len(views), device=views.device)
         (x_mean, x_logvar), (y_mean, y_logvar) = self._posteriors(flat, eps_true)
@@ -103,7 +106,15 @@ class CGMVAE(ModeSelector):
         return CGMVAEOutput(
             eps=eps, x=x, x_mean=x_mean, x_logvar=x_logvar, y_mean=y_mean, y_logvar=y_logvar,
             prior_mean=prior_mean, prior_logvar=prior_logvar, log_pi=log_pi, log_qc=log_qc, eps_generated=eps_generated,
+            eps_centres=self.cluster_centres(tokens, flat) if cluster_centres else None,
         )
+
+    def cluster_centres(self, tokens: torch.Tensor, flat: torch.Tensor) -> torch.Tensor:
+        """(B, K, eps_size): each cluster's draw of :meth:`sample` at its noise's mean (y = 0, x = mu_c(0, O)),
+        decoded; differentiable. Without the noise a cluster is the same hypothesis at every step."""
+        mean, _ = self.prior_x(torch.cat([flat.new_zeros(len(flat), self.config.y_dim), flat], dim=-1))  # (B, K, Dx)
+        b, k = mean.shape[:2]
+        return self.decoder(mean.flatten(0, 1), tokens.repeat_interleave(k, dim=0)).view(b, k, -1)
 
     @torch.no_grad()
     def reconstruct(self, views: torch.Tensor, eps_true: torch.Tensor) -> torch.Tensor:

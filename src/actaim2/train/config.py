@@ -21,6 +21,7 @@ from actaim2.models.selector_base import SelectorConfig
 CONFIG_DIR = Path(__file__).parent / "configs"
 PHASES = ("selector", "predictor", "joint")
 PREDICTOR_EPS = ("true", "served")
+SELECTOR_CONDITIONS = ("own", "object")
 
 
 @dataclass(frozen=True)
@@ -40,6 +41,9 @@ class ElboWeights:
     # With it, the mean entropy of each trajectory's q(c): together they maximise the batch's mutual information
     # of cluster and data (IMSAT, Hu et al. 2017), so clusters are both used and told apart (0: off, the paper).
     cluster_confidence: float = 0.0
+    # Not an ELBO term: winner-takes-all over the K clusters' noise-free draws - each trajectory pulls the cluster whose
+    # draw lies nearest its eps, so one object's K draws spread over its eps (train/elbo.py cluster_coverage; 0: off).
+    cluster_coverage: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -83,6 +87,11 @@ class TrainConfig:
     # the trajectory's, ``served_draws`` per cluster and trajectory; true eps + noise where none is).
     predictor_eps: str = "true"
     served_draws: int = 8
+    # The O_init the selector phase conditions each trajectory on: "own" (the paper) or "object" (that of a random
+    # trajectory of the same object, itself included). Why "object": every trajectory's placement jitter shows in its
+    # O_init, so with its own the conditional prior can learn one eps per O_init and needs no cluster for another
+    # outcome; with any of the object's, p(eps | O) has to hold all the outcomes the object showed.
+    selector_condition: str = "own"
     # With --init-from: take the parent's predictor weights (True) or train a freshly initialised
     # predictor beside the parent's selector and z statistics (False), so that a conditioning is
     # learned from the first step instead of being added at zero to a converged predictor.
@@ -101,6 +110,8 @@ class TrainConfig:
             raise ValueError(f"rotation_sigma_deg must be >= 0 (0: one-hot targets), got {self.rotation_sigma_deg}")
         if self.predictor_eps not in PREDICTOR_EPS:
             raise ValueError(f"predictor_eps must be one of {PREDICTOR_EPS}, got {self.predictor_eps!r}")
+        if self.selector_condition not in SELECTOR_CONDITIONS:
+            raise ValueError(f"selector_condition must be one of {SELECTOR_CONDITIONS}, got {self.selector_condition!r}")
         if self.served_draws < 1:
             raise ValueError(f"served_draws must be >= 1, got {self.served_draws}")
         if self.mode_contrast < 0.0:

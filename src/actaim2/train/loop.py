@@ -101,6 +101,7 @@ class Trainer:
         self.temperature = gumbel_temperature(0.0)  # the CGMVAE's Gumbel-softmax temperature, annealed per epoch
         self.partners = self._contrast_partners() if config.mode_contrast > 0.0 else None
         self.served_pools: list[np.ndarray] | None = None  # per trajectory, during a "served" predictor phase
+        self.same_object = self._same_object() if config.selector_condition == "object" else None
         if init_from is not None:
             self._init_from(init_from)
         else:
@@ -144,6 +145,12 @@ class Trainer:
         self.lineage["init_from"] = {"path": str(stem), "weights_sha256": policy.meta.get("weights_sha256"),
                                      "phases_done": parent.get("phases_done"), "predictor_loaded": load_predictor,
                                      "init_from": parent.get("init_from")}  # the chain back to the first run
+
+    def _same_object(self) -> list[np.ndarray]:
+        """Per training trajectory, the rows of its object's trajectories (itself included): the O_init a
+        selector-phase batch may condition it on (``TrainConfig.selector_condition``)."""
+        objects = np.array([object_of(i) for i in self.train.ids])
+        return [np.flatnonzero(objects == o) for o in objects]
 
     def _contrast_partners(self) -> list[np.ndarray]:
         """Per training trajectory, the same object's trajectories of another outcome (train/mode_contrast.py)."""
@@ -357,7 +364,12 @@ class Trainer:
         weights = self.config.elbo
         with self._autocast():
             if phase == "selector":
-                views, z = data.selector_batch(items[:, 0], self.device)
+                rows = items[:, 0]
+                _, z = data.selector_batch(rows, self.device)
+                condition = rows
+                if self.same_object is not None and rng is not None:  # a training batch of self.train
+                    condition = np.array([rng.choice(self.same_object[r]) for r in rows])
+                views, _ = data.selector_batch(condition, self.device)
                 elbo, _, metrics = selector_loss(selector, views, self.selector.standardise(z), weights, temperature=self.temperature)
                 return None, elbo, metrics
             batch = data.keyframe_batch(items, self.device)
