@@ -365,11 +365,11 @@ class Trainer:
         with self._autocast():
             if phase == "selector":
                 rows = items[:, 0]
-                _, z = data.selector_batch(rows, self.device)
                 condition = rows
                 if self.same_object is not None and rng is not None:  # a training batch of self.train
                     condition = np.array([rng.choice(self.same_object[r]) for r in rows])
-                views, _ = data.selector_batch(condition, self.device)
+                views, _ = data.selector_batch(condition, self.device)  # the O_init each trajectory is conditioned on
+                z = torch.from_numpy(data.z[rows]).to(self.device)
                 elbo, _, metrics = selector_loss(selector, views, self.selector.standardise(z), weights, temperature=self.temperature)
                 return None, elbo, metrics
             batch = data.keyframe_batch(items, self.device)
