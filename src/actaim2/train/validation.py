@@ -57,7 +57,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Iterator, Sequence
 
 import numpy as np
 import torch
@@ -282,7 +282,8 @@ def _is_most_frequent(outcome: str, others: np.ndarray) -> bool:
     return bool(values[np.argmax(counts)] == outcome)
 
 
-def _scored_rows(frames: np.ndarray, objects: np.ndarray, outcomes: np.ndarray, index: int):
+def _scored_rows(frames: np.ndarray, objects: np.ndarray, outcomes: np.ndarray,
+                 index: int) -> Iterator[tuple[int, np.ndarray]]:
     """(row, others) for each keyframe of phase ``index`` whose other demonstrations (same object and
     keypose, other trajectories; ``others`` their rows) show two or more outcomes: the keyframes an
     outcome-following figure can score. ``objects`` and ``outcomes`` are per trajectory."""
