@@ -241,9 +241,8 @@ def swapped_following(selector: ModeSelector, predictor: ActionPredictor, data: 
     swapped = np.full((len(frames), 3), np.nan)
     rows = np.flatnonzero(partner >= 0)
     true = selector.standardise(torch.from_numpy(np.asarray(data.z)).to(device))
-    for chunk in np.array_split(rows, max(1, math.ceil(len(rows) / batch_size))):
-        if len(chunk) == 0:
-            continue
+    for start in range(0, len(rows), batch_size):
+        chunk = rows[start : start + batch_size]
         batch = data.keyframe_batch(frames[chunk], device)
         out = predictor(batch["views"], true[partner[chunk]], proprio_features(batch["gripper"], batch["phase"]))
         swapped[chunk] = decode_action(out, placement, predictor.config.view_index,
