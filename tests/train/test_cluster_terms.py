@@ -89,11 +89,10 @@ def test_the_selector_condition_object_feeds_another_trajectorys_o_init_of_the_s
     own = np.array(trainer.train.ids)
     for seed in range(5):
         trainer.losses("selector", trainer.train, items, rng=np.random.default_rng(seed))
-    conditions = asked  # one O_init per trajectory of each batch
-    assert len(conditions) == 5
-    for condition in conditions:
+    assert len(asked) == 5  # one O_init per trajectory of each batch
+    for condition in asked:
         assert [i.split("-")[0] for i in own[condition]] == [i.split("-")[0] for i in own[rows]]  # the same object
-    assert any((c != rows).any() for c in conditions)  # and not always the trajectory's own O_init
+    assert any((c != rows).any() for c in asked)  # and not always the trajectory's own O_init
     asked.clear()
     trainer.losses("selector", trainer.train, items)  # no rng: a validation batch, each its own O_init
     assert all((a == rows).all() for a in asked)
