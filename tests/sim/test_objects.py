@@ -1,6 +1,8 @@
 """The articulated-object library: catalogue, splits, and every instance of every category built in SAPIEN."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import sapien
@@ -167,3 +169,26 @@ def test_folder_without_annotations_loads_and_bad_folders_are_refused(tmp_path, 
         scene.remove_articulation(obj.articulation)
     with pytest.raises(ObjectLoadError, match="mobility.urdf"):
         load_object(scene, tmp_path)
+
+
+def test_a_folder_another_process_finished_meanwhile_is_kept_and_an_old_format_is_replaced(tmp_path, monkeypatch):
+    """Two collection workers start the same uncached object: the second to finish generating
+    must not delete the first one's folder, which the first may be loading already."""
+    real_generate, marker = catalog.generate, "loaded_by_the_first_process"
+
+    def generate_while_another_process_finishes(category: str, instance: int):
+        monkeypatch.setattr(catalog, "generate", real_generate)
+        first = catalog.object_folder(category, instance, tmp_path)  # the other process, start to end
+        (first / marker).write_text("")
+        return real_generate(category, instance)
+
+    monkeypatch.setattr(catalog, "generate", generate_while_another_process_finishes)
+    folder = catalog.object_folder("faucet", 0, tmp_path)
+    assert (folder / marker).is_file()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [folder.name]  # the loser's copy is gone
+
+    meta = read_meta(folder)
+    (folder / "meta.json").write_text(json.dumps({**meta, "format_version": meta["format_version"] - 1}))
+    assert catalog.object_folder("faucet", 0, tmp_path) == folder
+    assert read_meta(folder) == meta and not (folder / marker).exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [folder.name]

@@ -131,22 +131,35 @@ def default_cache_dir() -> Path:
     return Path(os.environ.get("ACTAIM2_CACHE", Path.home() / ".cache" / "actaim2")) / "objects"
 
 
+def _is_current(folder: Path) -> bool:
+    """Whether ``folder`` holds a complete object of this format (an older format is regenerated)."""
+    return (folder / "mobility.urdf").is_file() and read_meta(folder).get("format_version") == FORMAT_VERSION
+
+
 def object_folder(category: str, instance: int, cache_dir: Path | None = None) -> Path:
     """The PartNet-Mobility style folder of an instance, generated on first use.
 
     Written to a temporary folder and renamed into place, so concurrent processes (a sim
-    node and a test) never see a half-written object.
+    node and a test, two collection workers) never see a half-written object. Only a folder
+    of an older format is removed: one another process renamed into place while this one was
+    generating is kept, because that process may be loading it already (removing it made
+    collection workers fail with FileNotFoundError on an object's first trajectories).
     """
     cache = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     folder = cache / object_id(category, instance)
-    if (folder / "mobility.urdf").is_file() and read_meta(folder).get("format_version") == FORMAT_VERSION:
+    if _is_current(folder):
         return folder
     model = generate(category, instance)
     cache.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}-", dir=cache))
     model.write_folder(tmp)
-    if folder.exists():
-        shutil.rmtree(folder, ignore_errors=True)
+    if folder.exists() and not _is_current(folder):  # an older format: move it aside, then delete it
+        stale = Path(tempfile.mkdtemp(prefix=f".{folder.name}-stale-", dir=cache))
+        try:
+            folder.rename(stale / folder.name)
+        except OSError:  # another process moved it first
+            pass
+        shutil.rmtree(stale, ignore_errors=True)
     try:
         tmp.rename(folder)
     except OSError:  # another process won the race: its folder is equally good
