@@ -234,7 +234,7 @@ class ControlNode(Node):
             except RuntimeError as exc:  # no /joint_states: nothing was moved
                 outcome, candidate = Outcome(False, str(exc), float("nan"), float("nan"), "joint_states"), -1
             if candidate > 0:
-                self.get_logger().info(f"keypose refused by the planner: executing alternatives[{candidate - 1}]")
+                self.get_logger().info(f"keypose refused by the planner ({outcome.refused}): executing alternatives[{candidate - 1}]")
             return self._finish(handle, outcome, candidate)
         finally:
             self._executor.cancel_requested = lambda: False

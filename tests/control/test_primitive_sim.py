@@ -69,12 +69,13 @@ def test_run_first_falls_back_and_moves_nothing_for_a_refused_keypose():
 
     outcome, index = runner.run_first([far, far], velocity_scaling=0.5)
     assert index == -1 and not outcome.success and outcome.reason == "unreachable"
-    assert "[1.8, 0.0, 0.5]" in outcome.message
+    assert "[1.8, 0.0, 0.5]" in outcome.message and outcome.refused == ""
     np.testing.assert_allclose(executor.arm_state().position, start, atol=1e-6)
 
     near = Keypose(0, np.array([0.45, 0.0, 0.45]), down, False)
     outcome, index = runner.run_first([far, near], velocity_scaling=0.5)
     assert index == 1 and outcome.success, outcome.message
+    assert "[1.8, 0.0, 0.5]" in outcome.refused  # why the keypose asked for was not executed
     assert np.linalg.norm(env.tcp_pose()[:3, 3] - near.position) <= 0.005
     with pytest.raises(ValueError, match="no keypose"):
         runner.run_first([])

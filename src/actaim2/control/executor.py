@@ -7,7 +7,7 @@ calling the simulator directly for data collection. It only needs the three meth
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Protocol, Sequence
 
 import numpy as np
@@ -47,6 +47,7 @@ class Outcome:
     position_error: float  # m between the reached and the requested tcp position
     orientation_error: float  # rad
     reason: str = ""  # machine-readable failure reason ("" on success)
+    refused: str = ""  # executed a fallback: why the planner refused the keypose asked for (a log says it)
 
 
 class KeyposeRunner:
@@ -78,7 +79,8 @@ class KeyposeRunner:
             except PlanningError as exc:
                 refusal = refusal or self._outcome(T_goal, False, str(exc), exc.reason)
                 continue
-            return self._execute(motion, feedback), index
+            outcome = self._execute(motion, feedback)
+            return (replace(outcome, refused=refusal.message) if refusal else outcome), index
         return refusal, -1
 
     def _execute(self, motion: Motion, feedback: Feedback | None) -> Outcome:
