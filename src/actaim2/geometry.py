@@ -2,7 +2,7 @@
 
 Quaternions are (x, y, z, w) everywhere in this library, as in ROS messages and SciPy.
 SAPIEN poses and Pinocchio's ``Quaternion(w, x, y, z)`` constructor use (w, x, y, z):
-convert only at those boundaries with :func:`xyzw_to_wxyz` / :func:`wxyz_to_xyzw`.
+convert only at those boundaries with :func:`xyzw_to_wxyz` (poses are read back from them as matrices).
 Transforms are 4x4 homogeneous matrices ``T_a_b`` mapping points in frame b into frame a.
 """
 from __future__ import annotations
@@ -16,11 +16,6 @@ ArrayLike = np.ndarray
 def xyzw_to_wxyz(q: ArrayLike) -> np.ndarray:
     q = np.asarray(q, dtype=float)
     return np.concatenate([q[..., 3:4], q[..., 0:3]], axis=-1)
-
-
-def wxyz_to_xyzw(q: ArrayLike) -> np.ndarray:
-    q = np.asarray(q, dtype=float)
-    return np.concatenate([q[..., 1:4], q[..., 0:1]], axis=-1)
 
 
 def pose_to_matrix(position: ArrayLike, quat_xyzw: ArrayLike) -> np.ndarray:

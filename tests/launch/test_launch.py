@@ -120,6 +120,6 @@ def test_a_node_that_dies_is_reported_with_its_log_and_the_graph_stops(tmp_path)
     out, _ = proc.communicate(timeout=60)
     assert proc.returncode == 1, out
     log = tmp_path / "logs" / "g" / "broken.log"
-    assert f"broken exited with code" in out and str(log) in out, out
+    assert "broken exited with code" in out and str(log) in out, out
     assert "/no/such.yaml" in log.read_text()
     assert "ok stopped" in out

@@ -60,7 +60,6 @@ class CollisionChecker:
             if isinstance(obj.geometry, coal.BVHModelBase):
                 obj.geometry.buildConvexHull(False, "Qt")
                 obj.geometry = obj.geometry.convex
-        self._n_robot = geom.ngeoms
         self._moving = [i for i, o in enumerate(geom.geometryObjects) if o.parentJoint != 0]
         geom.addAllCollisionPairs()
         self._remove_never_colliding(geom)

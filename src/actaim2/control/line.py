@@ -56,7 +56,7 @@ class LinePath:
         length2 = float(ab @ ab)
         rotations = _slerp(self.T_start, self.T_goal)(u).as_matrix()
         worst_pos = worst_rot = 0.0
-        for uk, qk, Rk in zip(u, self.spline(u), rotations):
+        for qk, Rk in zip(self.spline(u), rotations):
             T = robot.fk(qk)
             p = T[:3, 3]
             s = np.clip((p - a) @ ab / length2, 0.0, 1.0) if length2 > 0 else 0.0

@@ -59,7 +59,6 @@ class GMMAdaptiveSampler:
             gmm = GaussianMixture(k, covariance_type="diag", reg_covar=1e-3, n_init=2, random_state=seed).fit(reduced)
             if best is None or gmm.bic(reduced) < best.bic(reduced):
                 best = gmm
-        self.cluster_gmm = best
         labels = best.predict(reduced)
         self.action_gmms: list[GaussianMixture] = []
         cluster_actions = actions[use]

@@ -36,8 +36,6 @@ from actaim2.rollout.teleop_eval import MODES, STATE_NAMES, initial_state
 
 SPLIT = "standin"
 SHELF = EvalObject(SPLIT, "three_drawer_shelf", 0)  # the demonstrations' shelf (scripted_teleop instance 0)
-PLACEMENTS = 10  # held-out placements of the full protocol
-CONDITIONS = ("before", "after")  # the pretrained checkpoint, the fine-tuned one
 BOTH = "both"  # the push and pull episodes pooled
 
 

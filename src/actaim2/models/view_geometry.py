@@ -18,7 +18,7 @@ points with centre 0 and half extent 1). This module adds what learning needs on
 * :func:`decode_points` - RVT's cube-grid re-projection: the 3-D point whose five projections
   carry the largest summed log-probability, searched coarse-to-fine: a 32^3 grid scored by an
   upper bound (per view, the best pixel of the cell's block), then the 9^3 fine cells around
-  the 2 best coarse cells scored exactly. :func:`decode_points_dense` scores all R^3 cells;
+  the 2 best coarse cells scored exactly. :func:`decode_cells_dense` scores all R^3 cells;
   tests use it to check the coarse-to-fine search (a dense search at 128 px was measured at
   460-780 ms per call on 2 cores, far over the 20 ms latency budget).
   With ``sigma_px`` > 0 every view's probabilities are first blurred by a Gaussian of that many
@@ -234,8 +234,3 @@ def decode_cells_dense(heatmaps: torch.Tensor, sigma_px: float = 0.0) -> torch.T
 def decode_points(heatmaps: torch.Tensor, sigma_px: float = 0.0) -> torch.Tensor:
     """(B, V, R, R) heatmap logits -> (B, 3) cube-frame point (the best fine cell's centre)."""
     return cell_centres(decode_cells(heatmaps, sigma_px=sigma_px), heatmaps.shape[-1])
-
-
-def decode_points_dense(heatmaps: torch.Tensor) -> torch.Tensor:
-    """:func:`decode_points` by the dense search (tests only)."""
-    return cell_centres(decode_cells_dense(heatmaps), heatmaps.shape[-1])

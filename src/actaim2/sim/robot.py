@@ -154,9 +154,6 @@ class SimRobot:
         """Gap width (m) between the finger pads."""
         return self.gripper.gap_from_joint(self.gripper_position())
 
-    def arm_target(self) -> np.ndarray:
-        return np.array([float(j.drive_target[0]) for j in self.arm_joints])
-
     def gripper_target(self) -> float:
         return float(self.gripper_joints[0].drive_target[0])
 

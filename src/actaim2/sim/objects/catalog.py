@@ -50,10 +50,6 @@ def list_categories() -> list[str]:
     return list(TRAIN_CATEGORIES + HELDOUT_CATEGORIES + REAL_ROBOT_OBJECTS)
 
 
-def list_splits() -> list[str]:
-    return list(SPLITS)
-
-
 def split_instances(split: str) -> list[tuple[str, int]]:
     """(category, instance) pairs of a split, e.g. ``split_instances("train_seen")``."""
     if split not in SPLITS:
