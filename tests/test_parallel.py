@@ -86,3 +86,33 @@ def test_workers_exit_when_their_parent_is_killed(tmp_path) -> None:
         for pid in (int(p.name) for p in pids.iterdir()):
             if _alive(pid):
                 os.kill(pid, signal.SIGKILL)
+
+
+# A parent whose workers each hold a Ruckig trajectory generator (a nanobind object), as an
+# evaluation worker's planner does.
+RUCKIG_PARENT = textwrap.dedent("""
+    import ruckig
+    from actaim2.parallel import run_unordered
+
+    class Holder:
+        def __init__(self, dofs):
+            self.generator = ruckig.Ruckig(dofs, 0.01)
+
+        def run(self, task):
+            return task
+
+    def make(dofs):
+        return Holder(dofs)
+
+    if __name__ == "__main__":
+        print(sorted(run_unordered(make, 7, range(4), workers=2)))
+""")
+
+
+@pytest.mark.timeout(120)
+def test_workers_free_their_state_before_exit_so_nanobind_reports_no_leak(tmp_path) -> None:
+    script = tmp_path / "parent.py"
+    script.write_text(RUCKIG_PARENT)
+    run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=100, env=dict(os.environ))
+    assert run.returncode == 0 and run.stdout.strip() == "[0, 1, 2, 3]", run.stdout + run.stderr
+    assert "leaked" not in run.stderr, run.stderr
