@@ -164,3 +164,9 @@ def test_cluster_coverage_and_the_selector_condition_runs_differ_from_cluster_ba
     assert coverage.elbo.cluster_coverage == 1.0 and dataclasses.replace(coverage, elbo=plain.elbo) == plain
     assert condition.selector_condition == "object" and dataclasses.replace(condition, selector_condition="own") == plain
     assert dataclasses.replace(both, elbo=plain.elbo) == condition and both.elbo == coverage.elbo
+
+
+def test_fit_demos_is_structured_demos_without_augmentation_or_eps_noise():
+    base, step = load_config("structured_demos"), load_config("fit_demos")
+    assert base.augment and base.eps_noise == 0.5 and not step.augment and step.eps_noise == 0.0
+    assert dataclasses.replace(step, augment=True, eps_noise=0.5) == base
