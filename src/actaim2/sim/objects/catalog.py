@@ -149,13 +149,8 @@ def object_folder(category: str, instance: int, cache_dir: Path | None = None) -
     cache.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}-", dir=cache))
     model.write_folder(tmp)
-    if folder.exists() and not _is_current(folder):  # an older format: move it aside, then delete it
-        stale = Path(tempfile.mkdtemp(prefix=f".{folder.name}-stale-", dir=cache))
-        try:
-            folder.rename(stale / folder.name)
-        except OSError:  # another process moved it first
-            pass
-        shutil.rmtree(stale, ignore_errors=True)
+    if folder.exists() and not _is_current(folder):  # an older format
+        shutil.rmtree(folder, ignore_errors=True)
     try:
         tmp.rename(folder)
     except OSError:  # another process won the race: its folder is equally good
