@@ -1,4 +1,5 @@
-"""actaim2.parallel's process executor: results of every task, and no worker outlives a killed parent."""
+"""actaim2.parallel's process executor: results of every task (in task order when asked), and no worker
+outlives a killed parent."""
 from __future__ import annotations
 
 import os
@@ -11,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from actaim2.parallel import ORPHAN_POLL_S, run_unordered
+from actaim2.parallel import ORPHAN_POLL_S, run_ordered, run_unordered
 
 # A parent whose workers record their pid, then each sit on a long task.
 PARENT = textwrap.dedent("""
@@ -44,6 +45,18 @@ def make_square(_setup: None) -> Square:
     return Square()
 
 
+class SlowFirst:
+    """Task 0 takes seconds, the others none: with two workers, the rest finish before it."""
+
+    def run(self, task: int) -> int:
+        time.sleep(3.0 if task == 0 else 0.0)
+        return task
+
+
+def make_slow_first(_setup: None) -> SlowFirst:
+    return SlowFirst()
+
+
 def _alive(pid: int) -> bool:
     """Running, not merely a zombie waiting for whoever adopted it to reap it."""
     try:
@@ -56,6 +69,13 @@ def _alive(pid: int) -> bool:
 @pytest.mark.parametrize("workers", [0, 2])
 def test_every_task_comes_back(workers: int) -> None:
     assert sorted(run_unordered(make_square, None, range(7), workers=workers)) == [t * t for t in range(7)]
+
+
+@pytest.mark.timeout(120)
+def test_ordered_results_come_in_task_order_when_they_finish_out_of_it() -> None:
+    assert next(run_unordered(make_slow_first, None, range(6), workers=2)) != 0  # the case run_ordered is for
+    assert list(run_ordered(make_slow_first, None, range(6), workers=2)) == list(range(6))
+    assert list(run_ordered(make_square, None, range(5), workers=0)) == [t * t for t in range(5)]
 
 
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads process states from /proc")

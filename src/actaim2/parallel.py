@@ -14,7 +14,9 @@ simulator, loaded models) across tasks. Three executors, one interface (:func:`r
   ``"local"`` to start a private local instance, pinned to 127.0.0.1 like the project's DDS).
   Ray is an optional extra (``pip install -e src/actaim2[ray]``); without it this executor says so.
 
-Results arrive in completion order: callers key them by task (e.g. append to a JSONL).
+Results arrive in completion order (:func:`run_unordered`): callers key them by task (e.g. append
+to a JSONL). :func:`run_ordered` restores the task order on top, for a writer whose output must
+not depend on the worker count (collection's dataset index).
 """
 from __future__ import annotations
 
@@ -79,6 +81,38 @@ def run_unordered(make: Callable[[Any], Any], setup: Any, tasks: Iterable[Any], 
         yield from map(worker.run, tasks)
     else:
         yield from _processes(make, setup, tasks, workers)
+
+
+class _Numbered:
+    """A worker whose results carry their task's position, so that :func:`run_ordered` can restore it."""
+
+    def __init__(self, worker: Any):
+        self.worker = worker
+
+    def run(self, numbered: tuple[int, Any]) -> tuple[int, Any]:
+        position, task = numbered
+        return position, self.worker.run(task)
+
+
+def _numbered(setup: tuple[Callable[[Any], Any], Any]) -> _Numbered:
+    make, inner = setup
+    return _Numbered(make(inner))
+
+
+def run_ordered(make: Callable[[Any], Any], setup: Any, tasks: Iterable[Any], workers: int = 2,
+                ray_address: str | None = None) -> Iterator[Any]:
+    """Results of ``make(setup).run(task)`` for every task, in task order.
+
+    Executed as :func:`run_unordered` executes them; a result that finishes before those of
+    earlier tasks waits here until they come, so it costs memory only while a slow task holds
+    the ones after it (a few, with tasks of similar length)."""
+    waiting: dict[int, Any] = {}
+    following = 0
+    for position, result in run_unordered(_numbered, (make, setup), enumerate(tasks), workers, ray_address):
+        waiting[position] = result
+        while following in waiting:
+            yield waiting.pop(following)
+            following += 1
 
 
 def _processes(make, setup, tasks: Iterable[Any], workers: int) -> Iterator[Any]:

@@ -19,6 +19,7 @@ from actaim2.data.collect import SKIPPED_FILE, CollectConfig, TrajectoryCollecto
 from actaim2.data.storage import MAX_TRAJECTORY_BYTES, DatasetReader, decode_trajectory
 from actaim2.data.torch_dataset import KeyframeDataset, ModeDataset
 from actaim2.data.trajectory import OBSERVATION_NAMES
+from actaim2.parallel import ray_available
 from actaim2.perception.config import load_perception_config
 from actaim2.perception.ortho_views import CHANNELS, VIEWS
 from actaim2.perception.pipeline import Perception
@@ -130,3 +131,25 @@ def test_collection_resumes_after_a_hard_kill_and_after_ctrl_c(tmp_path):
     skipped = (out / SKIPPED_FILE).read_text().count("\n") if (out / SKIPPED_FILE).exists() else 0  # over all three runs
     assert len(ids) == len(set(ids)) == 4 - skipped
     assert all(after.read(e).id == e["id"] for e in after.entries)
+
+
+@pytest.mark.skipif(ray_available() is not None, reason=str(ray_available()))
+@pytest.mark.timeout(900)
+def test_collection_on_ray_actors_stores_what_this_process_stores(tmp_path):
+    """`actaim2 collect --ray local` (a private Ray instance on loopback) runs the trajectories on
+    two actors, the executor evaluation uses; the dataset is the one collected in this process,
+    trajectory by trajectory, in the same order."""
+    on_ray, here = tmp_path / "ray", tmp_path / "here"
+    result = subprocess.run([sys.executable, "-m", "actaim2.cli", "collect", "--out", str(on_ray), "--object", f"{OBJECT[0]}:{OBJECT[1]}",
+                             "--random", "3", "--grasp", "0", "--gmm", "0", "--encoder-steps", "10", "--ray", "local", "--workers", "2",
+                             "--no-progress"], capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "Ray: a local instance at 127.0.0.1:" in result.stdout and "(loopback only)" in result.stdout, result.stdout
+    collect(CollectConfig(out=here, objects=(OBJECT,), per_object={"random": 3}, workers=0, encoder_steps=10, show_progress=False))
+    ray_entries, here_entries = DatasetReader(on_ray).entries, DatasetReader(here).entries
+    assert ray_entries and [e["id"] for e in ray_entries] == [e["id"] for e in here_entries]
+    for a, b in zip(ray_entries, here_entries):
+        np.testing.assert_allclose(a["action"], b["action"])
+        assert a["gt_success"] == b["gt_success"]
+    runs = [json.loads(line) for line in (on_ray / "runs.jsonl").read_text().splitlines()]
+    assert runs[0]["ray"] == "local"

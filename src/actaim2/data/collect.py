@@ -20,24 +20,19 @@ control package's planner observing O_1..O_3 in between, observe O_final (robot 
 the DoFs (privileged, for validation only). A keypose the planner refuses restarts the
 trajectory with a new sample, up to ``max_attempts`` times.
 
-Workers are processes, each with its own simulator; the parent only writes. Every trajectory's
+Workers are processes or Ray actors (actaim2.parallel, the executor evaluation uses), each with
+its own simulator; the parent only writes, in task order. Every trajectory's
 randomness comes from a seed derived from (seed, object, sampler, index), so a dataset is
 reproducible from its seed whatever the worker count or interruptions.
 """
 from __future__ import annotations
 
-import itertools
 import json
 import logging
-import multiprocessing as mp
-import os
 import time
 import zlib
-from collections import deque
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Iterator
 
 import numpy as np
 from tqdm import tqdm
@@ -60,6 +55,7 @@ from actaim2.data.stats import RUNS_FILE
 from actaim2.data.storage import (DatasetReader, DatasetWriter, EncodedTrajectory, encode_trajectory, object_of,
                                   trajectory_id)
 from actaim2.data.trajectory import CameraImage, ObjectState, Observation, Trajectory
+from actaim2.parallel import run_ordered
 from actaim2.perception.config import CAPTURE_FIELDS, RENDER_PATHS, PerceptionConfig, capture_part, check_compatible, load_perception_config
 from actaim2.robots import load_robot_spec
 from actaim2.sim.env import SimEnv
@@ -71,7 +67,6 @@ from actaim2.sim.randomisation import DomainRandomisation
 EXPLORE_SAMPLERS = ("random", "grasp")
 SAMPLER_CODES = {"random": 1, "grasp": 2, "gmm": 3}
 PRECHECK_IK_RESTARTS = 8
-IN_FLIGHT_PER_WORKER = 3
 SKIPPED_FILE = "skipped.jsonl"  # trajectories given up on (no feasible sample): not retried on resume
 TOP_UP_ROUNDS = 3  # random replacements of skipped explore trajectories (replacements can be skipped too)
 
@@ -84,7 +79,8 @@ class CollectConfig:
     objects: tuple[tuple[str, int], ...]  # catalogue (category, instance) pairs
     per_object: dict[str, int]  # sampler -> trajectories per train_seen object
     other_splits_share: float = 1.0  # objects outside train_seen get ceil(share x per_object) of each sampler
-    workers: int = 2  # processes; 0 runs in this process (debugging, tests)
+    workers: int = 2  # processes; 0 runs in this process (debugging, tests); Ray actors with ray_address
+    ray_address: str | None = None  # run the trajectories on a Ray cluster (actaim2.parallel): auto, ray://host:port, local
     seed: int = 0
     robot: str = "panda"
     perception: str = "ring5"  # rig name or PerceptionConfig YAML: the rig, cube and render path of the pictures
@@ -257,50 +253,23 @@ def ik_reachable(ik: IKSolver, home: np.ndarray, action: ActionSequence, rng: np
     return True
 
 
-_COLLECTOR: TrajectoryCollector | None = None
+class CollectionWorker:
+    """One worker's collector (simulator, planner, samplers), built once for all its tasks."""
 
+    def __init__(self, config: CollectConfig):
+        import torch
 
-def _init_worker(config: CollectConfig) -> None:
-    global _COLLECTOR
-    import torch
+        torch.set_num_threads(1)  # one core per worker: intra-op threads would only contend
+        self.collector = TrajectoryCollector(config)
 
-    torch.set_num_threads(1)  # one core per worker process: intra-op threads would only contend
-    _COLLECTOR = TrajectoryCollector(config)
-
-
-def _run_task(task: Task) -> EncodedTrajectory | dict:
-    try:
-        return _COLLECTOR.run(task)
-    except Exception as exc:  # one broken trajectory (a simulator error) must not end a long collection
-        return {"id": task.tid, "sampler": task.sampler, "category": task.category, "instance": task.instance,
-                "reasons": [f"error: {exc!r}"]}
-
-
-def _results(config: CollectConfig, todo: list[Task]) -> Iterator[EncodedTrajectory | dict]:
-    """Results in task order, from this process or from worker processes.
-
-    At most a few tasks per worker are in flight, so memory stays flat however many tasks a
-    stage has; a worker that dies (e.g. a crashed renderer) stops the run with BrokenProcessPool
-    instead of hanging it, and the next run resumes.
-    """
-    if config.workers == 0:
-        if _COLLECTOR is None or _COLLECTOR.config != config:
-            _init_worker(config)
-        yield from map(_run_task, todo)
-        return
-    os.environ.setdefault("OMP_NUM_THREADS", "1")  # inherited by the workers (Open3D, PyTorch)
-    pool = ProcessPoolExecutor(config.workers, mp_context=mp.get_context("spawn"), initializer=_init_worker, initargs=(config,))
-    tasks = iter(todo)
-    try:
-        pending = deque(pool.submit(_run_task, t) for t in itertools.islice(tasks, IN_FLIGHT_PER_WORKER * config.workers))
-        while pending:
-            result = pending.popleft().result()
-            following = next(tasks, None)
-            if following is not None:
-                pending.append(pool.submit(_run_task, following))
-            yield result
-    finally:
-        pool.shutdown(wait=False, cancel_futures=True)
+    def run(self, task: Task) -> EncodedTrajectory | dict:
+        """The collector's result; a task that raised comes back as an error record, so that one
+        broken trajectory (a simulator error) does not end a long collection."""
+        try:
+            return self.collector.run(task)
+        except Exception as exc:
+            return {"id": task.tid, "sampler": task.sampler, "category": task.category, "instance": task.instance,
+                    "reasons": [f"error: {exc!r}"]}
 
 
 def _skipped_ids(out: Path) -> set[str]:
@@ -316,7 +285,7 @@ def run_tasks(config: CollectConfig, writer: DatasetWriter, tasks: list[Task], s
     """
     done = writer.ids | _skipped_ids(config.out)
     todo = [t for t in tasks if t.tid not in done]
-    summary = {"stage": stage, "workers": config.workers, "trajectories": 0, "skipped": 0, "errors": 0, "seconds": 0.0,
+    summary = {"stage": stage, "workers": config.workers, **({"ray": config.ray_address} if config.ray_address else {}), "trajectories": 0, "skipped": 0, "errors": 0, "seconds": 0.0,
                "already_done": len(tasks) - len(todo)}
     if not todo:
         return summary
@@ -325,7 +294,7 @@ def run_tasks(config: CollectConfig, writer: DatasetWriter, tasks: list[Task], s
     successes = 0
     with open(config.out / SKIPPED_FILE, "a") as skipped_log:
         try:
-            for result in _results(config, todo):
+            for result in run_ordered(CollectionWorker, config, todo, config.workers, config.ray_address):
                 if isinstance(result, EncodedTrajectory):
                     writer.append(result)
                     summary["trajectories"] += 1

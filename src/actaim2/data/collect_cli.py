@@ -5,6 +5,7 @@ Examples:
     actaim2 collect --out data/small --instances-per-category 1 --random 10 --grasp 10 --gmm 5
     actaim2 collect --out data/ds --vgg19-weights vgg19-dcbb9e9d.pth         # E = a user's VGG-19
     actaim2 collect --out data/pm --objects ~/partnet-mobility --object-splits splits.yaml   # real folders
+    actaim2 collect --out data/ds --ray auto --workers 32                        # on a Ray cluster
     actaim2 collect --out data/azure --robot kinova_j2s6s200 --perception azure_kinect --domain-randomisation default
 
 Interrupt it at any time; the same command resumes where it stopped.
@@ -31,7 +32,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--other-splits-share", type=float, default=1.0,
                         help="objects outside train_seen get this share of each count, rounded up (e.g. 0.4: 50 -> 20)")
     parser.add_argument("--rounds", type=int, default=1, help="GMM refits while collecting the adaptive trajectories")
-    parser.add_argument("--workers", type=int, default=2, help="worker processes (0 = in this process)")
+    parser.add_argument("--workers", type=int, default=2, help="worker processes (0 = in this process); Ray actors with --ray")
+    parser.add_argument("--ray", metavar="ADDRESS", help="run the trajectories on Ray actors (actaim2.parallel, as actaim2 evaluate "
+                                                         "does): auto, ray://host:port, or local (a private instance on 127.0.0.1)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--robot", default="panda", help="robot preset or YAML (actaim2.robots)")
     parser.add_argument("--perception", default="ring5",
@@ -83,6 +86,7 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.data.encoder import ImageEncoder
     from actaim2.data.real_objects import folder_objects, read_object_splits
     from actaim2.data.splits import split_of
+    from actaim2.parallel import ray_available
     from actaim2.sim.randomisation import load_randomisation
 
     try:
@@ -101,6 +105,9 @@ def main(args: argparse.Namespace) -> int:
     if min(args.random, args.grasp, args.gmm) < 0 or args.workers < 0 or args.rounds < 1 or not 0 < args.other_splits_share <= 1:
         print("actaim2 collect: counts and --workers must be >= 0, --rounds >= 1, --other-splits-share in (0, 1]", file=sys.stderr)
         return 2
+    if args.ray and ray_available():
+        print(f"actaim2 collect: --ray: {ray_available()}", file=sys.stderr)
+        return 2
     encoder = args.encoder
     if args.vgg19_weights is not None:
         args.out.mkdir(parents=True, exist_ok=True)
@@ -112,7 +119,7 @@ def main(args: argparse.Namespace) -> int:
             return 2
     config = CollectConfig(
         out=args.out, objects=tuple(objects), per_object={"random": args.random, "grasp": args.grasp, "gmm": args.gmm},
-        other_splits_share=args.other_splits_share, workers=args.workers, seed=args.seed, robot=args.robot, perception=args.perception, render_path=args.render_path or "",
+        other_splits_share=args.other_splits_share, workers=args.workers, ray_address=args.ray, seed=args.seed, robot=args.robot, perception=args.perception, render_path=args.render_path or "",
         allow_raycast=args.allow_raycast, rounds=args.rounds,
         encoder=encoder, encoder_steps=args.encoder_steps, show_progress=not args.no_progress,
         folders=tuple(folders), hull_cache=args.hull_cache, randomisation=randomisation,

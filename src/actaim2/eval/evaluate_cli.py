@@ -146,6 +146,7 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.eval.tables import report
     from actaim2.eval.tasks import plan_tasks
     from actaim2.eval.worker import EvalWorker, WorkerSetup
+    from actaim2.parallel import ray_available
     from actaim2.perception.config import load_perception_config
     from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, MODE_GUIDANCE
 
@@ -154,6 +155,8 @@ def main(args: argparse.Namespace) -> int:
     alternatives = KEYPOSE_ALTERNATIVES if args.keypose_alternatives is None else args.keypose_alternatives
     guidance = MODE_GUIDANCE if args.mode_guidance is None else args.mode_guidance
     try:
+        if args.ray and ray_available():
+            raise ValueError(f"--ray: {ray_available()}")
         if alternatives < 0:
             raise ValueError(f"--keypose-alternatives {alternatives} is negative")
         if not guidance >= 0.0:

@@ -23,7 +23,7 @@ def _decimated_part(
     """A one-part mesh shape with at most ``max_triangles``, or None to keep the part as is."""
     triangles = np.asarray(part.triangles)
     material = part.material
-    if len(triangles) <= max_triangles or material.base_color_texture is not None or material.diffuse_texture is not None:
+    if len(triangles) <= max_triangles or material.base_color_texture is not None:
         return None
     mesh = o3d.geometry.TriangleMesh(
         o3d.utility.Vector3dVector(np.asarray(part.vertices, dtype=np.float64)),
