@@ -10,7 +10,10 @@
   benchmark) while an executor spins the node's callbacks in a thread. By default the signals
   only set ``stop`` too, so the client can cancel its running goal before the context goes.
 
-Each applies the project's ROS defaults before ``rclpy.init()``, turns a constructor's
+Each applies the project's ROS defaults before ``rclpy.init()``, has the process write every
+thread's Python stack to stderr (the node's log) on :data:`STACK_DUMP_SIGNAL` (``actaim2 launch``
+sends it to a node that does not stop after SIGINT, before killing it: the log then says where it
+hung), turns a constructor's
 ValueError or OSError (unusable parameters, an unreadable file) into one ``cannot start: <why>``
 line and exit code 1 instead of a traceback, and shuts down in the one safe order: executor,
 spinner thread (out of rcl before the node goes: a thread left inside it aborted the process at
@@ -22,6 +25,7 @@ the functions, so the library stays importable without ROS.
 """
 from __future__ import annotations
 
+import faulthandler
 import signal
 import threading
 from typing import TYPE_CHECKING, Callable, TypeVar
@@ -31,9 +35,11 @@ from actaim2.runtime import apply_ros_defaults
 if TYPE_CHECKING:
     from rclpy.executors import Executor
     from rclpy.node import Node
+    from rclpy.signals import SignalHandlerOptions
 
 SHUTDOWN_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 SPIN_POLL = 0.1  # wall seconds: the longest a spin loop waits before it looks at its flag or deadline again
+STACK_DUMP_SIGNAL = signal.SIGUSR1  # every thread's stack to stderr (faulthandler: written even while a thread holds the GIL)
 
 
 N = TypeVar("N", bound="Node")
@@ -45,8 +51,7 @@ def spin(make_node: Callable[[], Node], name: str, args: list[str] | None = None
     import rclpy
     from rclpy.executors import ExternalShutdownException
 
-    apply_ros_defaults()
-    rclpy.init(args=args)
+    _init(args)
     try:
         node = _start(make_node, name)
     except KeyboardInterrupt:  # Ctrl-C while the node was being built: the same end, without a traceback
@@ -105,13 +110,10 @@ def run_client(make_node: Callable[[threading.Event], N], body: Callable[[N, thr
     executor with ``threads`` threads spins the node in another. ``own_signals``: SIGINT and
     SIGTERM only set ``stop`` (the body cancels what runs and ends); False keeps rclpy's handler
     (Ctrl-C shuts the context down at once), for a client with nothing to cancel."""
-    import rclpy
-
     if own_signals:
         stop = _init_stoppable(args)
     else:
-        apply_ros_defaults()
-        rclpy.init(args=args)
+        _init(args)
         stop = threading.Event()
     node = _start(lambda: make_node(stop), name)
     if node is None:
@@ -126,16 +128,24 @@ def run_client(make_node: Callable[[threading.Event], N], body: Callable[[N, thr
         _close(executor, node, spinner)
 
 
+def _init(args: list[str] | None, signal_handler_options: SignalHandlerOptions | None = None) -> None:
+    """The project's ROS defaults, the stack dump on :data:`STACK_DUMP_SIGNAL`, then ``rclpy.init``
+    (None: with rclpy's own SIGINT and SIGTERM handlers)."""
+    import rclpy
+
+    apply_ros_defaults()
+    faulthandler.register(STACK_DUMP_SIGNAL, all_threads=True)
+    rclpy.init(args=args, signal_handler_options=signal_handler_options)
+
+
 def _init_stoppable(args: list[str] | None) -> threading.Event:
     """rclpy without its signal handler, and an event that SIGINT and SIGTERM set instead: rclpy's
     handler would shut the context down before running goals could be cancelled or answered, and a
     KeyboardInterrupt raised wherever the main thread is (inside the executor's own code, inside
     SAPIEN's start-up) left the executor unable to spin or crashed the process at exit."""
-    import rclpy
     from rclpy.signals import SignalHandlerOptions
 
-    apply_ros_defaults()
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    _init(args, SignalHandlerOptions.NO)
     stop = threading.Event()
     for signum in SHUTDOWN_SIGNALS:
         signal.signal(signum, lambda *_: stop.set())

@@ -6,12 +6,14 @@ import os
 import signal
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 import pytest
 from tf2_msgs.msg import TFMessage
 
-from actaim2.launch.cli import command_lines, default_graphs_file, share_dir
+from actaim2.launch import cli as launch_cli
+from actaim2.launch.cli import command_lines, default_graphs_file, share_dir, stop_all
 from actaim2.launch.graph import GraphError, NodeSpec, expand_share, load_graphs, parse_launch_xml, to_launch_xml
 from actaim2_perception.transforms import TF_STATIC_LISTENER_QOS
 from harness import REPO, wait_for
@@ -123,3 +125,42 @@ def test_a_node_that_dies_is_reported_with_its_log_and_the_graph_stops(tmp_path)
     assert "broken exited with code" in out and str(log) in out, out
     assert "/no/such.yaml" in log.read_text()
     assert "ok stopped" in out
+
+
+# A node (started as every node executable is, through actaim2.ros_main.spin) that hangs in its shutdown.
+HANGING_NODE = textwrap.dedent("""
+    import sys, time
+    from rclpy.node import Node
+    from actaim2.ros_main import spin
+
+    def hang_in_destroy_node():
+        while True:
+            time.sleep(0.1)
+
+    class Hangs(Node):
+        def __init__(self):
+            super().__init__("hangs_on_shutdown")
+            print("node up", flush=True)
+
+        def destroy_node(self):
+            hang_in_destroy_node()
+
+    sys.exit(spin(Hangs, "hangs_on_shutdown"))
+""")
+
+
+def test_a_node_that_does_not_stop_leaves_its_stacks_in_its_log_and_is_killed(tmp_path, monkeypatch, capsys):
+    log_path = tmp_path / "hangs.log"
+    with open(log_path, "w") as log:
+        proc = subprocess.Popen([sys.executable, "-c", HANGING_NODE], stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        assert wait_for(lambda: "node up" in log_path.read_text(), 60.0), log_path.read_text()
+        monkeypatch.setattr(launch_cli, "STOP_TIMEOUT", 3.0)
+        assert stop_all([("hangs", proc, log_path)]) == 1
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == -signal.SIGKILL
+    assert "did not stop within 3 s" in capsys.readouterr().err
+    stacks = log_path.read_text()
+    assert "most recent call first" in stacks and "in hang_in_destroy_node" in stacks, stacks

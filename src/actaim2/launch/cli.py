@@ -21,8 +21,10 @@ import time
 from pathlib import Path
 
 from actaim2.launch.graph import GRAPH_ENVIRONMENT, Graph, GraphError, load_graphs, to_launch_xml
+from actaim2.ros_main import STACK_DUMP_SIGNAL
 
 STOP_TIMEOUT = 10.0  # s a node gets to exit after SIGINT before it is killed
+STACK_DUMP_WAIT = 0.5  # s between asking a node that did not stop for its stacks and killing it
 POLL = 0.2
 
 
@@ -120,8 +122,8 @@ def run_graph(graph: Graph, commands: list[list[str]], log_dir: Path) -> int:
 
 
 def stop_all(procs: list[tuple[str, subprocess.Popen, Path]]) -> int:
-    """SIGINT to every running node (its process group: ros2 run execs the node), then SIGKILL
-    after STOP_TIMEOUT; returns 0 when every node exited cleanly (0, or -SIGINT)."""
+    """SIGINT to every running node (its process group: ros2 run execs the node), then, after
+    STOP_TIMEOUT, the stack dump signal and SIGKILL; returns 0 when every node exited cleanly (0, or -SIGINT)."""
     for _, proc, _ in procs:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGINT)
@@ -131,9 +133,12 @@ def stop_all(procs: list[tuple[str, subprocess.Popen, Path]]) -> int:
         try:
             code = proc.wait(timeout=max(0.0, deadline - time.monotonic()))
         except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, STACK_DUMP_SIGNAL)  # a node started by actaim2.ros_main writes where its threads are
+            time.sleep(STACK_DUMP_WAIT)
             os.killpg(proc.pid, signal.SIGKILL)
             code = proc.wait()
-            print(f"[launch] {name} did not stop within {STOP_TIMEOUT:.0f} s: killed (log {log_path})", file=sys.stderr)
+            print(f"[launch] {name} did not stop within {STOP_TIMEOUT:.0f} s: killed; its threads' stacks are at the end "
+                  f"of its log ({log_path})", file=sys.stderr)
         if code not in (0, -signal.SIGINT):
             worst = 1
         print(f"[launch] {name} stopped (exit code {code})", flush=True)
