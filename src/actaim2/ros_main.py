@@ -13,11 +13,10 @@
 Each applies the project's ROS defaults before ``rclpy.init()``, has the process write every
 thread's Python stack to stderr (the node's log) on :data:`STACK_DUMP_SIGNAL` (``actaim2 launch``
 sends it to a node that does not stop after SIGINT, before killing it: the log then says where it
-hung), turns a constructor's
-ValueError or OSError (unusable parameters, an unreadable file) into one ``cannot start: <why>``
-line and exit code 1 instead of a traceback, and shuts down in the one safe order: executor,
-spinner thread (out of rcl before the node goes: a thread left inside it aborted the process at
-exit), node, context.
+hung), turns a constructor's ValueError or OSError (unusable parameters, an unreadable file) into
+one ``cannot start: <why>`` line and exit code 1 instead of a traceback, and shuts down in the one
+safe order: executor, spinner thread (out of rcl before the node goes: a thread left inside it
+aborted the process at exit), node, context.
 
 Why here and not in a ROS package: as for :mod:`actaim2.ros_params`, every node package depends
 on this library while no ROS package is a dependency of all the others. rclpy is imported inside

@@ -285,8 +285,8 @@ def run_tasks(config: CollectConfig, writer: DatasetWriter, tasks: list[Task], s
     """
     done = writer.ids | _skipped_ids(config.out)
     todo = [t for t in tasks if t.tid not in done]
-    summary = {"stage": stage, "workers": config.workers, **({"ray": config.ray_address} if config.ray_address else {}), "trajectories": 0, "skipped": 0, "errors": 0, "seconds": 0.0,
-               "already_done": len(tasks) - len(todo)}
+    summary = {"stage": stage, "workers": config.workers, **({"ray": config.ray_address} if config.ray_address else {}),
+               "trajectories": 0, "skipped": 0, "errors": 0, "seconds": 0.0, "already_done": len(tasks) - len(todo)}
     if not todo:
         return summary
     start = time.perf_counter()
