@@ -121,11 +121,13 @@ def test_train_command_runs_all_phases_and_writes_loadable_checkpoints(dataset, 
     text = (out / "validation.md").read_text()
     assert (out / "curves.png").stat().st_size > 10_000 and "| true z" in text and "| MANIPULATE | 11 |" in text
     assert "Mode chain" in text
-    # A checkpoint outside a run folder (as shipped): the figures, no curves.
+    # A checkpoint outside a run folder (as shipped): the figures, no curves; on the threads asked for.
     shipped = tmp_path / "shipped"
     assert cli_main(["validate", str(shipped), "--checkpoint", str(out / "policy"), "--data", str(dataset),
-                     "--split", "train_seen", "--no-progress"]) == 0
+                     "--split", "train_seen", "--no-progress", "--threads", "2"]) == 0
+    assert torch.get_num_threads() == 2  # the folder's one_torch_thread fixture restores it
     assert (shipped / "validation.md").read_text() == text and not (shipped / "curves.png").exists()
+    assert cli_main(["validate", str(shipped), "--data", str(dataset), "--threads", "-1"]) == 2
 
 
 def test_baseline_selector_reuses_the_goal_rvt_predictor(dataset, tmp_path):

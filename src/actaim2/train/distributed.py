@@ -34,6 +34,15 @@ class DistContext:
         return self.world_size > 1
 
 
+def set_cpu_threads(threads: int) -> None:
+    """torch's intra-op CPU threads; 0 keeps torch's default (one per core). On a machine busy with
+    other work, threads beyond the free cores spin in OpenMP instead of computing: `actaim2
+    validate` took 2062 s beside a 2-worker evaluation on 2 cores, 197 s alone, and beside two busy
+    processes 569 s on one thread against more than 700 s on two (docs/training.md)."""
+    if threads > 0:
+        torch.set_num_threads(threads)
+
+
 def choose_device(preference: str, local_rank: int = 0) -> torch.device:
     """"auto": CUDA when present, else CPU; "cpu" / "cuda" as asked (cuda without a GPU is an error)."""
     if preference == "cpu" or (preference == "auto" and not torch.cuda.is_available()):

@@ -30,6 +30,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--init-from", type=Path, help="start from this policy checkpoint (e.g. <run>/goal_rvt)")
     parser.add_argument("--resume", action="store_true", help="continue from <out>/train_state")
     parser.add_argument("--device", choices=["auto", "cpu", "cuda"], help="override the config's device")
+    parser.add_argument("--threads", type=int, default=0,
+                        help="torch CPU threads (0: torch's default, one per core). Beside other CPU work (evaluation "
+                             "workers, a collection) use 1: spinning OpenMP threads made validation several times slower there")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
@@ -45,9 +48,13 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.train.checkpoint import perception_record
     from actaim2.train.config import load_config
     from actaim2.train.data import dataset_digest, ensure_cache, holdout_split, open_cache
-    from actaim2.train.distributed import init_distributed, shutdown
+    from actaim2.train.distributed import init_distributed, set_cpu_threads, shutdown
     from actaim2.train.loop import Trainer
 
+    if args.threads < 0:
+        print(f"actaim2 train: --threads {args.threads} is negative")
+        return 2
+    set_cpu_threads(args.threads)
     config = load_config(args.config)
     changes = {}
     if args.selector:

@@ -27,6 +27,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--checkpoint", type=Path, help="policy checkpoint stem (default <run>/policy)")
     parser.add_argument("--split", default="train_unseen_instance", help="split whose successes are measured")
     parser.add_argument("--perception", default="ring5", help="perception configuration the checkpoint was trained with")
+    parser.add_argument("--threads", type=int, default=0,
+                        help="torch CPU threads (0: torch's default, one per core). Beside other CPU work (evaluation "
+                             "workers, a collection) use 1: spinning OpenMP threads made validation several times slower there")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
@@ -37,10 +40,14 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.train import checkpoint
     from actaim2.train.curves import plot_curves, read_history
     from actaim2.train.data import dataset_digest, ensure_cache, open_cache
-    from actaim2.train.distributed import choose_device
+    from actaim2.train.distributed import choose_device, set_cpu_threads
     from actaim2.train.validation import action_figures, drawn_following, markdown, mode_chain_figures, outcome_figures, \
         predict_keyframes, selector_figures, swapped_following
 
+    if args.threads < 0:
+        print(f"actaim2 validate: --threads {args.threads} is negative")
+        return 2
+    set_cpu_threads(args.threads)
     stem = args.checkpoint or args.run / "policy"
     args.run.mkdir(parents=True, exist_ok=True)
     perception = load_perception_config(args.perception)
