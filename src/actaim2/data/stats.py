@@ -17,7 +17,7 @@ import numpy as np
 
 from actaim2.sim.success import SUCCESS_FRACTION
 
-RUNS_FILE = "runs.jsonl"  # one line per `actaim2 collect` run: trajectories, wall time, workers
+RUNS_FILE = "runs.jsonl"  # one line per `actaim2 collect` stage run: trajectories, wall time, workers (and --ray)
 
 
 def outcome(entry: dict) -> str | None:
