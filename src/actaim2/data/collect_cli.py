@@ -105,8 +105,9 @@ def main(args: argparse.Namespace) -> int:
     if min(args.random, args.grasp, args.gmm) < 0 or args.workers < 0 or args.rounds < 1 or not 0 < args.other_splits_share <= 1:
         print("actaim2 collect: counts and --workers must be >= 0, --rounds >= 1, --other-splits-share in (0, 1]", file=sys.stderr)
         return 2
-    if args.ray and ray_available():
-        print(f"actaim2 collect: --ray: {ray_available()}", file=sys.stderr)
+    ray_problem = ray_available() if args.ray else None
+    if ray_problem:
+        print(f"actaim2 collect: --ray: {ray_problem}", file=sys.stderr)
         return 2
     encoder = args.encoder
     if args.vgg19_weights is not None:

@@ -155,8 +155,9 @@ def main(args: argparse.Namespace) -> int:
     alternatives = KEYPOSE_ALTERNATIVES if args.keypose_alternatives is None else args.keypose_alternatives
     guidance = MODE_GUIDANCE if args.mode_guidance is None else args.mode_guidance
     try:
-        if args.ray and ray_available():
-            raise ValueError(f"--ray: {ray_available()}")
+        ray_problem = ray_available() if args.ray else None
+        if ray_problem:
+            raise ValueError(f"--ray: {ray_problem}")
         if alternatives < 0:
             raise ValueError(f"--keypose-alternatives {alternatives} is negative")
         if not guidance >= 0.0:

@@ -30,10 +30,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--init-from", type=Path, help="start from this policy checkpoint (e.g. <run>/goal_rvt)")
     parser.add_argument("--resume", action="store_true", help="continue from <out>/train_state")
     parser.add_argument("--device", choices=["auto", "cpu", "cuda"], help="override the config's device")
+    add_threads_argument(parser)
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+def add_threads_argument(parser: argparse.ArgumentParser) -> None:
+    """``--threads``, shared with ``actaim2 validate``: both run torch on the CPU, often beside other work."""
     parser.add_argument("--threads", type=int, default=0,
                         help="torch CPU threads (0: torch's default, one per core). Beside other CPU work (evaluation "
                              "workers, a collection) use 1: spinning OpenMP threads made validation several times slower there")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
 def main(args: argparse.Namespace) -> int:

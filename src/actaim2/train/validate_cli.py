@@ -19,6 +19,8 @@ import dataclasses
 import json
 from pathlib import Path
 
+from actaim2.train.train_cli import add_threads_argument
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("run", type=Path, help="an `actaim2 train` run folder (history.jsonl, policy), or with "
@@ -27,9 +29,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--checkpoint", type=Path, help="policy checkpoint stem (default <run>/policy)")
     parser.add_argument("--split", default="train_unseen_instance", help="split whose successes are measured")
     parser.add_argument("--perception", default="ring5", help="perception configuration the checkpoint was trained with")
-    parser.add_argument("--threads", type=int, default=0,
-                        help="torch CPU threads (0: torch's default, one per core). Beside other CPU work (evaluation "
-                             "workers, a collection) use 1: spinning OpenMP threads made validation several times slower there")
+    add_threads_argument(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
