@@ -28,7 +28,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from actaim2.perception.config import load_perception_config
-from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, MODE_GUIDANCE, ROLES, PolicyLoadError, PolicyModel
+from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, MODE_GUIDANCE, NOISE_SCALE, ROLES, PolicyLoadError, PolicyModel
 from actaim2.policy.locate import COMMITTED, installed_folders, resolve_checkpoint
 from actaim2.policy.requests import NO_VIEWS, RequestError, check_cluster, check_embedding, check_fresh, check_phase
 from actaim2.policy.views import Views, accept_views
@@ -55,6 +55,8 @@ PARAMETERS = {
     "mode_guidance": (MODE_GUIDANCE, "weight w of the mode guidance of the predicted point: each view's heatmap log-probabilities "
                                      "l(eps) + w (l(eps) - l(0)), l(0) the predictor fed the mean mode (classifier-free "
                                      "guidance); 0 = the plain predictor, one forward pass"),
+    "noise_scale": (NOISE_SCALE, "spread of /sample_mode's latent draw relative to the trained selector's (sampling "
+                                 "temperature): 1 = as trained, 0 = each cluster's noise-free eps (one eps per cluster and views)"),
     "predictor_views_topic": ("", "views for the action predictor when it was trained with the other robot-filter "
                                   "setting than the selector (fusion_node's alternate_views_topic); empty = views_topic"),
 }
@@ -79,6 +81,9 @@ class PolicyNode(Node):
         self._guidance = float(p["mode_guidance"])
         if not self._guidance >= 0.0:
             raise ValueError(f"mode_guidance {self._guidance} is not a weight >= 0")
+        self._noise_scale = float(p["noise_scale"])
+        if not self._noise_scale >= 0.0:
+            raise ValueError(f"noise_scale {self._noise_scale} is not a scale >= 0")
         self._model: PolicyModel | None = None
         self._load_error = ""
         try:
@@ -145,7 +150,7 @@ class PolicyNode(Node):
             model = self._require_model()
             check_cluster(request.cluster, model.clusters)
             views = self._views_for("selector")
-            sample = model.sample_mode(views, request.cluster, request.seed)
+            sample = model.sample_mode(views, request.cluster, request.seed, self._noise_scale)
         except RequestError as exc:
             return self._refuse(response, str(exc))
         except Exception as exc:  # noqa: BLE001 - answered and logged: the node must keep serving

@@ -108,6 +108,30 @@ def test_sampling_interface(kind):
         model.sample(views, 8)
 
 
+@pytest.mark.parametrize("kind", ["cgmvae", "cvae", "vqvae"])
+def test_noise_scale_zero_gives_one_eps_per_cluster_and_views_and_one_keeps_the_draws(kind):
+    torch.manual_seed(0)
+    model = build_selector(SelectorConfig(kind=kind, **SMALL)).eval()
+    views = torch.rand(2, 5, 8, 16, 16)
+    cluster = None if kind == "cvae" else 3
+
+    def draw(seed: int, scale: float) -> torch.Tensor:
+        return model.sample(views, cluster, torch.Generator().manual_seed(seed), noise_scale=scale).eps
+
+    assert torch.equal(draw(1, 0.0), draw(2, 0.0))
+    default = model.sample(views, cluster, torch.Generator().manual_seed(1)).eps
+    assert torch.equal(draw(1, 1.0), default)
+    if kind == "vqvae":  # a code decodes to one eps whatever the scale
+        assert torch.equal(draw(1, 0.0), default)
+        return
+    assert not torch.allclose(draw(1, 1.0), draw(2, 1.0))
+    assert not torch.allclose(draw(1, 0.5), default)
+    if kind == "cgmvae":  # scale 0 is the cluster's noise-free draw the coverage term trains (CGMVAE.cluster_centres)
+        with torch.no_grad():
+            tokens, flat = model.condition(views)
+            torch.testing.assert_close(draw(1, 0.0), model.cluster_centres(tokens, flat)[:, 3])
+
+
 def test_z_standardisation_does_not_blow_up_dimensions_constant_in_training():
     """A dead encoder feature (constant on the training set) stays bounded when an unseen object moves it."""
     torch.manual_seed(0)

@@ -71,6 +71,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mode-guidance", type=float, default=None, metavar="W",
                         help="mode guidance weight of a policy row's translation (models/mode_guidance.py; default as "
                              "policy_node, 0 = off); recorded in run.json")
+    parser.add_argument("--noise-scale", type=float, default=None, metavar="S",
+                        help="spread of a policy row's mode draws relative to its selector's (ModeSelector.sample; "
+                             "default as policy_node, 1 = as trained, 0 = each cluster's noise-free eps); recorded in run.json")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -148,12 +151,13 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.eval.worker import EvalWorker, WorkerSetup
     from actaim2.parallel import ray_available
     from actaim2.perception.config import load_perception_config
-    from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, MODE_GUIDANCE
+    from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, MODE_GUIDANCE, NOISE_SCALE
 
     preset = _preset(args)
     half_turn = POLICY_PLANNER.hand_half_turn if args.hand_half_turn is None else args.hand_half_turn
     alternatives = KEYPOSE_ALTERNATIVES if args.keypose_alternatives is None else args.keypose_alternatives
     guidance = MODE_GUIDANCE if args.mode_guidance is None else args.mode_guidance
+    noise_scale = NOISE_SCALE if args.noise_scale is None else args.noise_scale
     try:
         ray_problem = ray_available() if args.ray else None
         if ray_problem:
@@ -162,6 +166,8 @@ def main(args: argparse.Namespace) -> int:
             raise ValueError(f"--keypose-alternatives {alternatives} is negative")
         if not guidance >= 0.0:
             raise ValueError(f"--mode-guidance {guidance} is not a weight >= 0")
+        if not noise_scale >= 0.0:
+            raise ValueError(f"--noise-scale {noise_scale} is not a scale >= 0")
         stems, methods = _methods(args)
         described = {m: describe(stems[m]) for m in methods if m in stems}
         for m in (m for m in ABLATIONS if m in described):
@@ -185,6 +191,7 @@ def main(args: argparse.Namespace) -> int:
         encoder = _encoder(args, stems["goal_rvt"]) if "goal_rvt" in methods else None
         run = {"eval_set_version": EVAL_SET_VERSION, "robot": args.robot, "rig": perception.rig, "hand_half_turn": half_turn,
                "pseudo_grouping": PSEUDO_GROUPING, "keypose_alternatives": alternatives, "mode_guidance": guidance,
+               "noise_scale": noise_scale,
                "methods": {m: described.get(m, {}).get("weights_sha256") or ("dataset " + _data_digest(args.data)
                                                                           if m == "data_collection" else m) for m in methods}}
         check_run(args.out, run)
@@ -193,7 +200,8 @@ def main(args: argparse.Namespace) -> int:
         return 2
     setup = WorkerSetup(args.robot, perception.rig, render_path, tuple(perception.center), float(perception.half_extent),
                         {m: str(stems[m]) for m in described}, str(encoder) if encoder else None, gmm,
-                        hand_half_turn=half_turn, keypose_alternatives=alternatives, mode_guidance=guidance)
+                        hand_half_turn=half_turn, keypose_alternatives=alternatives, mode_guidance=guidance,
+                        noise_scale=noise_scale)
     if args.grounding:
         return _grounding(args, setup, methods)
     clusters = {m: described[m]["clusters"] if m in described and m != "goal_rvt" else 0 for m in methods}

@@ -49,7 +49,7 @@ def embedding_figure(worker, tasks: list[EvalTask], records: dict[str, dict], pa
         worker.env.reset(obj.category if not obj.folder else None, max(obj.instance, 0), seed=task.reset_seed,
                          dof_fraction=worker.setup.dof_fraction, folder=obj.folder or None)
         views = source.views("selector", pictures(worker.env, with_robot=False), worker.env)
-        eps.append(source.model.sample_mode(views, task.cluster, task.sample_seed).eps)
+        eps.append(source.sample_mode(views, task.cluster, task.sample_seed).eps)
         record = records[task.key]
         clusters.append(task.cluster)
         success.append(bool(record["success"]))

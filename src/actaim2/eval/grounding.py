@@ -101,13 +101,14 @@ class _ChosenEps(ServedPolicy):
 
     def __init__(self, served: ServedPolicy):
         self.model, self.makers, self.alternatives, self.guidance = served.model, served.makers, served.alternatives, served.guidance
+        self.noise_scale = served.noise_scale
         self.arm: int | None = None
         self.vector: np.ndarray | None = None
 
     def begin(self, scene: Scene) -> Plan:
         views = self.views("selector", scene.init_pictures, scene.env)
         if self.arm is not None:
-            eps = self.model.sample_mode(views, self.arm, scene.task.sample_seed).eps
+            eps = self.sample_mode(views, self.arm, scene.task.sample_seed).eps
         else:
             selector = self.model.selector
             with torch.no_grad():

@@ -86,7 +86,8 @@ def main(args: argparse.Namespace) -> int:
     save_perception_config(perception, args.out / "checkpoint_perception.yaml")  # policy_node serves the checkpoint's own
     fusion = {"perception_config": str((args.out / "perception.yaml").resolve())}
     policy = {"checkpoint": str(args.checkpoint.resolve()), "perception_config": str((args.out / "checkpoint_perception.yaml").resolve()),
-              "keypose_alternatives": setup.keypose_alternatives, "mode_guidance": setup.mode_guidance}
+              "keypose_alternatives": setup.keypose_alternatives, "mode_guidance": setup.mode_guidance,
+              "noise_scale": setup.noise_scale}
     if predictor.digest() != selector.digest():  # trained with different robot filters: fusion publishes both
         fusion["alternate_views_topic"] = policy["predictor_views_topic"] = ALTERNATE_VIEWS
     started = time.perf_counter()
@@ -115,7 +116,7 @@ def main(args: argparse.Namespace) -> int:
               f"- graph {args.graph} (ROS_DOMAIN_ID {domain}), robot {setup.robot}, render path {render_path}, "
               f"velocity scaling {setup.velocity_scaling}, initial DoF fraction {setup.dof_fraction}",
               f"- planner: hand_half_turn {setup.hand_half_turn}, keypose_alternatives {setup.keypose_alternatives}, "
-              f"mode_guidance {setup.mode_guidance} on both paths",
+              f"mode_guidance {setup.mode_guidance}, noise_scale {setup.noise_scale} on both paths",
               "- goal tolerances: " + ("the nodes' own (--node-tolerances)" if args.node_tolerances else
                                        "not checked on sim_node and control_node, as the library's executor"),
               f"- library {library_seconds:.0f} s, ROS loop {ros_seconds:.0f} s (graph start included), "

@@ -6,7 +6,7 @@ cut short by a kill is dropped when the file is opened again. Tasks that raised 
 (they are retried by the next run).
 
 ``<out>/run.json`` records what the results were made with: the evaluation set version, the
-robot and rig, the planner's ``hand_half_turn``, the policies' ``keypose_alternatives`` and ``mode_guidance``, and per method its checkpoint's weights digest. Resuming with another
+robot and rig, the planner's ``hand_half_turn``, the policies' ``keypose_alternatives``, ``mode_guidance`` and ``noise_scale``, and per method its checkpoint's weights digest. Resuming with another
 checkpoint for a method already in the file is refused, so numbers of two models never mix.
 """
 from __future__ import annotations
@@ -33,14 +33,15 @@ def check_run(out: Path, run: dict) -> dict:
         return run
     old = json.loads(path.read_text())
     # a run.json written before the planner option, or before pseudo-clusters were shuffled
-    defaults = {"hand_half_turn": False, "pseudo_grouping": "slot mod 8", "keypose_alternatives": 0, "mode_guidance": 0.0}
+    defaults = {"hand_half_turn": False, "pseudo_grouping": "slot mod 8", "keypose_alternatives": 0, "mode_guidance": 0.0,
+                "noise_scale": 1.0}
     for field in ("eval_set_version", "robot", "rig", "hand_half_turn", "pseudo_grouping", "keypose_alternatives",
-                  "mode_guidance"):
+                  "mode_guidance", "noise_scale"):
         recorded = old.get(field, defaults.get(field))
         if recorded != run.get(field, defaults.get(field)):
             flag = {"hand_half_turn": "--hand-half-turn" if recorded else "--no-hand-half-turn",
                     "keypose_alternatives": f"--keypose-alternatives {recorded}",
-                    "mode_guidance": f"--mode-guidance {recorded}"}.get(field)
+                    "mode_guidance": f"--mode-guidance {recorded}", "noise_scale": f"--noise-scale {recorded}"}.get(field)
             match = f" (or {flag} to resume it)" if flag else ""
             raise RunMismatchError(f"{out} holds results of {field} {recorded!r}, this run has {run.get(field)!r}: "
                                    f"use another --out{match}")

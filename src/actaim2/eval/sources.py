@@ -29,7 +29,7 @@ from actaim2.eval.methods import PSEUDO_CLUSTERS
 from actaim2.eval.sim_views import ViewMaker, pictures
 from actaim2.eval.tasks import EvalTask
 from actaim2.keypose import Keypose
-from actaim2.policy.inference import ROLES, PolicyModel
+from actaim2.policy.inference import NOISE_SCALE, ROLES, ModeSample, PolicyModel
 from actaim2.policy.views import Views
 from actaim2.robots import RobotSpec
 from actaim2.sim.env import ResetInfo, SimEnv
@@ -87,10 +87,12 @@ def pseudo_group(key: str, slot: int) -> tuple[int, int]:
 class ServedPolicy:
     """A policy checkpoint and the view makers of its two models (one when their views agree);
     ``alternatives``: fallback keyposes asked for with each one, ``guidance``: the mode guidance weight
-    (both ``PolicyModel.predict_keypose``'s)."""
+    (both ``PolicyModel.predict_keypose``'s), ``noise_scale``: the spread of each mode draw
+    (``PolicyModel.sample_mode``'s)."""
 
-    def __init__(self, model: PolicyModel, spec: RobotSpec, alternatives: int = 0, guidance: float = 0.0):
-        self.model, self.alternatives, self.guidance = model, alternatives, guidance
+    def __init__(self, model: PolicyModel, spec: RobotSpec, alternatives: int = 0, guidance: float = 0.0,
+                 noise_scale: float = NOISE_SCALE):
+        self.model, self.alternatives, self.guidance, self.noise_scale = model, alternatives, guidance, noise_scale
         makers: dict[str, ViewMaker] = {}
         self.makers = {}
         for role in ROLES:
@@ -99,6 +101,10 @@ class ServedPolicy:
 
     def views(self, role: str, observed: Observation, env: SimEnv) -> Views:
         return Views(0, self.makers[role].views(observed, env))
+
+    def sample_mode(self, views: Views, cluster: int, seed: int) -> ModeSample:
+        """The selector's draw for ``cluster`` (-1: drawn from the prior) at this source's noise scale."""
+        return self.model.sample_mode(views, cluster, seed, self.noise_scale)
 
     def keyposes(self, scene: Scene, eps: np.ndarray, details: dict) -> Callable[[int, bool], Sequence[Keypose]]:
         """Predict each phase's keypose (and its fallbacks) from the views observed just before it (robot in the scene)."""
@@ -118,7 +124,7 @@ class PolicySource(ServedPolicy):
     def begin(self, scene: Scene) -> Plan:
         task = scene.task
         views = self.views("selector", scene.init_pictures, scene.env)
-        sample = self.model.sample_mode(views, task.cluster if task.clusters else -1, task.sample_seed)
+        sample = self.sample_mode(views, task.cluster if task.clusters else -1, task.sample_seed)
         if task.clusters:
             group, repetition = task.cluster, task.slot // task.clusters
         else:

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 from actaim2.control.planner import POLICY_PLANNER
-from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, MODE_GUIDANCE
+from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, MODE_GUIDANCE, NOISE_SCALE
 from actaim2.data.collect import PRECHECK_IK_RESTARTS, CollectConfig
 
 _COLLECT_DEFAULTS = {f.name: f.default for f in dataclasses.fields(CollectConfig)}
@@ -35,6 +35,7 @@ class WorkerSetup:
     hand_half_turn: bool = POLICY_PLANNER.hand_half_turn  # PlannerOptions.hand_half_turn for every row's keyposes
     keypose_alternatives: int = KEYPOSE_ALTERNATIVES  # fallback rotations of each policy keypose (policy rows)
     mode_guidance: float = MODE_GUIDANCE  # models/mode_guidance.py's weight for every policy keypose (policy rows)
+    noise_scale: float = NOISE_SCALE  # spread of every policy row's mode draw (PolicyModel.sample_mode)
 
 
 class EvalWorker:
@@ -84,7 +85,7 @@ class EvalWorker:
             from actaim2.data.encoder import ImageEncoder
 
             return GoalSource(model, spec, ImageEncoder.load(s.encoder), s.keypose_alternatives, s.mode_guidance)
-        return PolicySource(model, spec, s.keypose_alternatives, s.mode_guidance)
+        return PolicySource(model, spec, s.keypose_alternatives, s.mode_guidance, s.noise_scale)
 
     def run(self, task) -> dict:
         """The task's result record (an EvalTask's sample, or a GroundingRun's rewards); {key, error} when

@@ -132,17 +132,18 @@ class CGMVAE(ModeSelector):
 
     @torch.no_grad()
     def sample(self, views: torch.Tensor, cluster: int | None = None,
-               generator: torch.Generator | None = None) -> SampleResult:
-        """c (given, or Gumbel-max from pi) -> y ~ N(0, I) -> x ~ p(x | y, c, O) -> eps = decoder(x, O)."""
+               generator: torch.Generator | None = None, noise_scale: float = 1.0) -> SampleResult:
+        """c (given, or Gumbel-max from pi) -> y ~ N(0, s^2 I) -> x ~ N(mu_c(y, O), s^2 Sigma_c(y, O)) -> eps = decoder(x, O),
+        s = ``noise_scale`` (1: the generative model; 0: x = mu_c(0, O), the noise-free draw ``cluster_centres`` gives)."""
         tokens, flat = self.condition(views)
         b, dev = len(views), views.device
         probs = torch.softmax(self.pi_logits, dim=-1).expand(b, -1)
         c = self._cluster_argument(cluster, b, dev)
         if c is None:
             c = gumbel_max(torch.log(probs), generator)
-        y = torch.randn(b, self.config.y_dim, generator=generator, device=dev)
+        y = noise_scale * torch.randn(b, self.config.y_dim, generator=generator, device=dev)
         prior_mean, prior_logvar = self.prior_x(torch.cat([y, flat], dim=-1))
         rows = torch.arange(b, device=dev)
         mean, logvar = prior_mean[rows, c], prior_logvar[rows, c]
-        x = mean + torch.exp(0.5 * logvar) * torch.randn(mean.shape, generator=generator, device=dev)
+        x = mean + noise_scale * torch.exp(0.5 * logvar) * torch.randn(mean.shape, generator=generator, device=dev)
         return SampleResult(self.decoder(x, tokens), c, probs)

@@ -168,7 +168,10 @@ class ModeSelector(nn.Module, abc.ABC):
 
     @abc.abstractmethod
     def sample(self, views: torch.Tensor, cluster: int | None = None,
-               generator: torch.Generator | None = None) -> SampleResult:
+               generator: torch.Generator | None = None, noise_scale: float = 1.0) -> SampleResult:
+        """Draw eps for each row of ``views``. ``noise_scale`` multiplies the spread of the latent draws
+        (the sampling temperature of Kingma & Dhariwal 2018): 1 samples the learned distribution, 0 takes
+        each cluster's most likely latent, so one cluster gives one eps per O_init."""
         ...
 
     @abc.abstractmethod

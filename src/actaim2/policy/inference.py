@@ -52,6 +52,9 @@ KEYPOSE_ALTERNATIVES = 4
 # models/mode_guidance.py). Off: w = 2 cost 4.3 points of SSR on seen objects and no second mode
 # (docs/evaluation.md, "Mode guidance").
 MODE_GUIDANCE = 0.0
+# Spread of the selector's latent draws /sample_mode uses by default (policy_node, the evaluation;
+# ModeSelector.sample's noise_scale): 1 samples the trained distribution.
+NOISE_SCALE = 1.0
 # Fallback rotations are this far apart (up to the hand's half turn): closer ones meet the same obstacles.
 ALTERNATIVE_SEPARATION_DEG = 30.0
 
@@ -141,12 +144,15 @@ class PolicyModel:
         return torch.from_numpy(np.ascontiguousarray(views.data))[None].to(self.device)
 
     @torch.no_grad()
-    def sample_mode(self, views: Views, cluster: int, seed: int) -> ModeSample:
+    def sample_mode(self, views: Views, cluster: int, seed: int, noise_scale: float = NOISE_SCALE) -> ModeSample:
+        """``noise_scale``: the spread of the latent draw (``ModeSelector.sample``; 0 = the cluster's noise-free eps)."""
+        if not noise_scale >= 0.0:
+            raise ValueError(f"noise_scale {noise_scale} is not a scale >= 0")
         if self.selector is None:
             raise RequestError(f"{self.stem} holds no mode selector (an action predictor alone): /sample_mode is unavailable")
         chosen = check_cluster(cluster, self.clusters)
         generator = torch.Generator(device=self.device).manual_seed(int(seed))
-        result = self.selector.sample(self._batch(views), chosen, generator)
+        result = self.selector.sample(self._batch(views), chosen, generator, noise_scale)
         return ModeSample(int(result.cluster[0]), result.eps[0].float().cpu().numpy(),
                           result.cluster_probabilities[0].float().cpu().numpy())
 

@@ -181,9 +181,10 @@ DRAWN_FOLLOWING_PHASES = ("reach", "manipulate")
 @torch.no_grad()
 def drawn_following(selector: ModeSelector, predictor: ActionPredictor, data: TrainingData, placement: CubePlacement,
                     predictions: KeyframePredictions, objects: Sequence[str], outcomes: Sequence[str],
-                    device: torch.device, seed: int = 0) -> dict[str, DrawnFollowing]:
+                    device: torch.device, seed: int = 0, noise_scale: float = 1.0) -> dict[str, DrawnFollowing]:
     """Per phase of ``DRAWN_FOLLOWING_PHASES``: does the point follow the outcome of eps drawn as served (module
-    docstring)? Empty for a selector without clusters. ``predictions`` gives the demonstrated targets."""
+    docstring; at ``noise_scale``, ``ModeSelector.sample``'s)? Empty for a selector without clusters.
+    ``predictions`` gives the demonstrated targets."""
     if selector.config.kind == "cvae":
         return {}
     objects, outcomes = np.asarray(objects), np.asarray(outcomes)
@@ -199,7 +200,7 @@ def drawn_following(selector: ModeSelector, predictor: ActionPredictor, data: Tr
         for row, others in _scored_rows(frames, objects, outcomes, PHASES.index(name)):
             rows = np.flatnonzero(objects == objects[trajectory[row]])
             batch = data.keyframe_batch(frames[row : row + 1], device)
-            drawn = torch.cat([selector.sample(batch["init_views"], c, generator).eps for c in range(k)])
+            drawn = torch.cat([selector.sample(batch["init_views"], c, generator, noise_scale).eps for c in range(k)])
             named = outcomes[rows[nearest_true(drawn, true[rows])]]
             views = batch["views"].expand(k, *batch["views"].shape[1:])
             out = predictor(views, drawn, proprio_features(batch["gripper"], batch["phase"]).expand(k, -1))
@@ -324,8 +325,9 @@ class ModeChainFigures:
 
 @torch.no_grad()
 def mode_chain_figures(selector: ModeSelector, data: TrainingData, objects: Sequence[str], outcomes: Sequence[str],
-                       device: torch.device, draws: int = 4, seed: int = 0) -> ModeChainFigures:
-    """Does eps name the outcome, and do the selector's clusters select it (module docstring)?"""
+                       device: torch.device, draws: int = 4, seed: int = 0, noise_scale: float = 1.0) -> ModeChainFigures:
+    """Does eps name the outcome, and do the selector's clusters select it (module docstring; draws at
+    ``noise_scale``)?"""
     objects, outcomes = np.asarray(objects), np.asarray(outcomes)
     generator = torch.Generator(device=device).manual_seed(seed)
     with_clusters = selector.config.kind != "cvae"
@@ -346,7 +348,7 @@ def mode_chain_figures(selector: ModeSelector, data: TrainingData, objects: Sequ
             condition = views[:1].expand(draws, *views.shape[1:])
             groups, labels, drawn_all = [], [], []
             for cluster in range(selector.config.clusters):
-                drawn = selector.sample(condition, cluster, generator).eps
+                drawn = selector.sample(condition, cluster, generator, noise_scale).eps
                 labels += list(outcomes[rows[nearest_true(drawn, true)]])
                 groups += [cluster] * draws
                 drawn_all.append(drawn)
@@ -394,8 +396,8 @@ def selector_figures(selector: ModeSelector, data: TrainingData, device: torch.d
 
 def markdown(split: str, actions: dict[str, dict[str, ActionFigures]], selector: dict,
              outcomes: dict[str, OutcomeFigures], chain: ModeChainFigures, drawn: dict[str, DrawnFollowing],
-             swapped: dict[str, SwappedFollowing]) -> str:
-    """The figures as the README shows them: over all keyframes, then per keypose phase."""
+             swapped: dict[str, SwappedFollowing], noise_scale: float = 1.0) -> str:
+    """The figures as the README shows them: over all keyframes, then per keypose phase (draws at ``noise_scale``)."""
     lines = [f"Validation on the visually-labelled successes of `{split}` "
              f"({selector['trajectories']} trajectories, {actions['reconstructed']['all'].keyframes} keyframes):", "",
              "| eps fed to the predictor | translation median / p90 (mm) | rotation median / p90 (deg) | gripper accuracy |",
@@ -422,7 +424,7 @@ def markdown(split: str, actions: dict[str, dict[str, ActionFigures]], selector:
                       f"the evaluation's split-half choice): {chain.second_mode_ceiling.cell()} % "
                       f"({chain.second_mode_ceiling.trials} half-B draws), labels shuffled among the object's draws "
                       f"{chain.second_mode_shuffled.cell()} %. Two eps of one object lie {chain.true_spread:.2f} apart "
-                      f"on average when true, {chain.drawn_spread:.2f} when drawn (standardised eps)."]
+                      f"on average when true, {chain.drawn_spread:.2f} when drawn (standardised eps; noise scale {noise_scale:g})."]
     else:
         lines += ["", "Mode chain and outcome following: no object's trajectories show two or more outcomes."]
     lines += ["", "Outcome following (true z; objects whose other trajectories show two or more outcomes): the "
@@ -433,7 +435,8 @@ def markdown(split: str, actions: dict[str, dict[str, ActionFigures]], selector:
         lines.append(f"| {phase.upper()} | {f.keyframes} | {100 * f.nearest_demo_same_outcome:.1f} % | "
                      f"{100 * f.demonstrated_point:.1f} % | {100 * f.majority_outcome:.1f} % |")
     if drawn:
-        lines += ["", "Outcome following as served (one eps drawn from each cluster on the trajectory's O_init; each names "
+        lines += ["", f"Outcome following as served (one eps drawn from each cluster on the trajectory's O_init at noise "
+                  f"scale {noise_scale:g}; each names "
                   "the outcome of its nearest true eps): the predicted point's nearest other demonstration has the named "
                   "outcome, against the names shuffled among the keyframe's draws:", "",
                   "| keypose | keyframes | follows the named outcome | names shuffled | distinct outcomes reached per keyframe |",

@@ -50,11 +50,11 @@ class CVAESelector(ModeSelector):
 
     @torch.no_grad()
     def sample(self, views: torch.Tensor, cluster: int | None = None,
-               generator: torch.Generator | None = None) -> SampleResult:
+               generator: torch.Generator | None = None, noise_scale: float = 1.0) -> SampleResult:
         if cluster is not None:
             raise ValueError("the CVAE selector has no clusters: call sample with cluster=None")
         tokens, _ = self.condition(views)
         b = len(views)
-        w = torch.randn(b, self.config.latent_dim, generator=generator, device=views.device)
+        w = noise_scale * torch.randn(b, self.config.latent_dim, generator=generator, device=views.device)
         return SampleResult(self.decoder(w, tokens), torch.full((b,), -1, dtype=torch.long, device=views.device),
                             torch.zeros(b, 0, device=views.device))

@@ -59,7 +59,8 @@ class VQVAESelector(ModeSelector):
 
     @torch.no_grad()
     def sample(self, views: torch.Tensor, cluster: int | None = None,
-               generator: torch.Generator | None = None) -> SampleResult:
+               generator: torch.Generator | None = None, noise_scale: float = 1.0) -> SampleResult:
+        """A code (given, or drawn from p(k | O)) decoded; ``noise_scale`` changes nothing: a code has no noise."""
         tokens, flat = self.condition(views)
         logits = self.prior(flat)
         k = self._cluster_argument(cluster, len(views), views.device)
