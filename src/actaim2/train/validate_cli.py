@@ -29,9 +29,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--checkpoint", type=Path, help="policy checkpoint stem (default <run>/policy)")
     parser.add_argument("--split", default="train_unseen_instance", help="split whose successes are measured")
     parser.add_argument("--perception", default="ring5", help="perception configuration the checkpoint was trained with")
-    parser.add_argument("--noise-scale", type=float, default=1.0, metavar="S",
-                        help="spread of the selector's draws (ModeSelector.sample, policy_node's noise_scale): 1 = as "
-                             "trained, 0 = each cluster's noise-free eps")
+    parser.add_argument("--noise-scale", type=float, default=None, metavar="S",
+                        help="spread of the selector's draws (ModeSelector.sample; default as policy_node's noise_scale, "
+                             "1 = as trained, 0 = each cluster's noise-free eps)")
     add_threads_argument(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
@@ -40,6 +40,7 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.data.storage import object_of
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.perception.config import load_perception_config
+    from actaim2.policy.inference import NOISE_SCALE
     from actaim2.train import checkpoint
     from actaim2.train.curves import plot_curves, read_history
     from actaim2.train.data import dataset_digest, ensure_cache, open_cache
@@ -50,8 +51,9 @@ def main(args: argparse.Namespace) -> int:
     if args.threads < 0:
         print(f"actaim2 validate: --threads {args.threads} is negative")
         return 2
-    if not args.noise_scale >= 0.0:
-        print(f"actaim2 validate: --noise-scale {args.noise_scale} is not a scale >= 0")
+    noise_scale = NOISE_SCALE if args.noise_scale is None else args.noise_scale
+    if not noise_scale >= 0.0:
+        print(f"actaim2 validate: --noise-scale {noise_scale} is not a scale >= 0")
         return 2
     set_cpu_threads(args.threads)
     stem = args.checkpoint or args.run / "policy"
@@ -78,20 +80,20 @@ def main(args: argparse.Namespace) -> int:
     selector = selector_figures(policy.selector, data, device)
     objects, outcomes = [object_of(t) for t in data.ids], data.outcomes.tolist()
     follow = outcome_figures(predictions, objects, outcomes)
-    chain = mode_chain_figures(policy.selector, data, objects, outcomes, device, noise_scale=args.noise_scale)
+    chain = mode_chain_figures(policy.selector, data, objects, outcomes, device, noise_scale=noise_scale)
     drawn = drawn_following(policy.selector, policy.predictor, data, placement, predictions, objects, outcomes, device,
-                            noise_scale=args.noise_scale)
+                            noise_scale=noise_scale)
     swapped = swapped_following(policy.selector, policy.predictor, data, placement, predictions, objects, outcomes, device)
     digest = policy.meta.get("weights_sha256")
     report = {"checkpoint": str(stem), "weights_sha256": digest, "dataset": str(args.data),
               "dataset_digest": dataset_digest(args.data), "split": args.split,
-              "noise_scale": args.noise_scale,
+              "noise_scale": noise_scale,
               "actions": {k: {p: dataclasses.asdict(f) for p, f in v.items()} for k, v in actions.items()}, "selector": selector,
               "outcome_following": {p: dataclasses.asdict(f) for p, f in follow.items()},
               "drawn_following": {p: dataclasses.asdict(f) for p, f in drawn.items()},
               "swapped_following": {p: dataclasses.asdict(f) for p, f in swapped.items()}, "mode_chain": dataclasses.asdict(chain)}
     (args.run / "validation.json").write_text(json.dumps(report, indent=2) + "\n")
-    text = markdown(args.split, actions, selector, follow, chain, drawn, swapped, args.noise_scale)
+    text = markdown(args.split, actions, selector, follow, chain, drawn, swapped, noise_scale)
     (args.run / "validation.md").write_text(text)
     print(text)
     written = [args.run / "validation.json", args.run / "validation.md"]
