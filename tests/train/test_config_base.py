@@ -170,3 +170,14 @@ def test_fit_demos_is_structured_demos_without_augmentation_or_eps_noise():
     base, step = load_config("structured_demos"), load_config("fit_demos")
     assert base.augment and base.eps_noise == 0.5 and not step.augment and step.eps_noise == 0.0
     assert dataclasses.replace(step, augment=True, eps_noise=0.5) == base
+
+
+def test_neighbour_eps_is_fit_demos_but_for_the_eps_the_predictor_reads_for_ten_epochs():
+    fit, step = load_config("fit_demos"), load_config("neighbour_eps")
+    assert (step.predictor_eps, step.neighbour_count, step.predictor_phase.epochs) == ("neighbour", 2, 10)
+    assert dataclasses.replace(step, predictor_eps="true", predictor_phase=fit.predictor_phase) == fit
+
+
+def test_a_neighbour_count_of_zero_is_refused():
+    with pytest.raises(ValueError, match="neighbour_count must be >= 1"):
+        TrainConfig.from_dict({"predictor_eps": "neighbour", "neighbour_count": 0})

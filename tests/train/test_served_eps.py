@@ -1,7 +1,8 @@
-"""Served eps (train/served_eps.py): every draw of the selector lands in the pool of its object's
-trajectory whose true eps lies nearest, only the predictor's trajectories take draws, and a
-"served" predictor phase feeds a keyframe a draw of its trajectory's pool (its true eps plus noise
-where the pool is empty) in training batches only."""
+"""Served and neighbour eps (train/served_eps.py): every draw of the selector lands in the pool of its
+object's trajectory whose true eps lies nearest, only the predictor's trajectories take draws, a
+neighbour pool holds the trajectory's own true eps and its nearest same-object ones, and a "served"
+or "neighbour" predictor phase feeds a keyframe an eps of its trajectory's pool (its true eps plus
+noise where the pool is empty) in training batches only."""
 from __future__ import annotations
 
 import dataclasses
@@ -14,7 +15,7 @@ from actaim2.data.storage import object_of
 from actaim2.train.checkpoint import perception_record
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer
-from actaim2.train.served_eps import pick_served, served_eps_pools
+from actaim2.train.served_eps import neighbour_eps_pools, pick_from_pools, served_eps_pools
 from synthetic import PLACEMENT, make_dataset
 from test_stop_gradient import TINY
 from torch_threads import single_torch_thread
@@ -66,31 +67,48 @@ def test_no_draws_is_refused(tmp_path):
         served_eps_pools(_trainer(data, tmp_path).selector, data, ["a"] * 3, np.arange(3), 0, torch.device("cpu"))
 
 
+def test_a_neighbour_pool_holds_the_own_eps_and_the_nearest_of_the_same_object():
+    true = np.array([[0.0, 0.0], [1.0, 0.0], [3.0, 0.0], [0.5, 0.0], [9.0, 0.0]], np.float32)
+    objects = ["a", "a", "a", "b", "a"]  # trajectory 3, nearest to 0 and 1, is another object's
+    pools = neighbour_eps_pools(true, objects, np.array([0, 1, 3]), count=2)
+    assert pools[0].tolist() == [[0.0, 0.0], [1.0, 0.0], [3.0, 0.0]]
+    assert pools[1].tolist() == [[1.0, 0.0], [0.0, 0.0], [3.0, 0.0]]
+    assert pools[3].tolist() == [[0.5, 0.0]]  # alone on its object: only its own
+    assert [len(pools[r]) for r in (2, 4)] == [0, 0]  # not the predictor's trajectories: no pool, yet neighbours
+    with pytest.raises(ValueError, match="at least 1 neighbour"):
+        neighbour_eps_pools(true, objects, np.array([0]), count=0)
+
+
 def test_picks_come_from_the_rows_own_pools():
     pools = [np.zeros((0, 2), np.float32), np.array([[1.0, 1.0], [2.0, 2.0]], np.float32), np.array([[5.0, 5.0]], np.float32)]
-    positions, picked = pick_served(pools, np.array([0, 2, 1, 0]), np.random.default_rng(0))
+    positions, picked = pick_from_pools(pools, np.array([0, 2, 1, 0]), np.random.default_rng(0))
     assert positions.tolist() == [1, 2]
     assert picked[0].tolist() == [5.0, 5.0] and picked[1].tolist() in ([1.0, 1.0], [2.0, 2.0])
 
 
-def test_a_served_predictor_phase_feeds_pool_draws_in_training_batches_only(tmp_path):
+@pytest.mark.parametrize("kind", ["served", "neighbour"])
+def test_a_pooled_predictor_phase_feeds_pool_eps_in_training_batches_only(tmp_path, kind):
     data = _data()
     with single_torch_thread():
-        trainer = _trainer(data, tmp_path, predictor_eps="served", served_draws=2, eps_noise=0.5)
+        trainer = _trainer(data, tmp_path, predictor_eps=kind, served_draws=2, eps_noise=0.5)
         eps = trainer.selector.standardise(torch.from_numpy(data.z[[0, 1, 2]]))
         assert torch.equal(trainer.training_eps(eps, np.array([0, 1, 2]), None), eps)  # outside the phase: as given
-        trainer.served_pools = [np.full((1, eps.shape[1]), 7.0, np.float32), np.zeros((0, eps.shape[1]), np.float32),
-                                np.full((1, eps.shape[1]), 9.0, np.float32)]
+        trainer.eps_pools = [np.full((1, eps.shape[1]), 7.0, np.float32), np.zeros((0, eps.shape[1]), np.float32),
+                             np.full((1, eps.shape[1]), 9.0, np.float32)]
         fed = trainer.training_eps(eps, np.array([0, 1, 2]), np.random.default_rng(1))
         assert torch.all(fed[0] == 7.0) and torch.all(fed[2] == 9.0)
         assert not torch.equal(fed[1], eps[1]) and torch.allclose(fed[1], eps[1], atol=4.0)  # true eps plus noise
         assert torch.equal(trainer.training_eps(eps, np.array([0, 1, 2]), None), eps)  # validation batches: as given
-        # The phase builds the pools from the selector, then drops them: the joint phase reads the selector's eps.
-        trainer.served_pools = None
+        # The phase builds the pools (from the selector's draws, or from the true eps), then drops them: the
+        # joint phase reads the selector's eps.
+        trainer.eps_pools = None
         trainer.config = dataclasses.replace(trainer.config, phases=("predictor",),
                                              predictor_phase=dataclasses.replace(trainer.config.predictor_phase, epochs=0.1))
         seen = []
         original = trainer.training_eps
-        trainer.training_eps = lambda e, r, g: (seen.append(trainer.served_pools is not None), original(e, r, g))[1]
+        trainer.training_eps = lambda e, r, g: (seen.append(trainer.eps_pools), original(e, r, g))[1]
         trainer._run_phase("predictor")
-    assert seen and all(seen) and trainer.served_pools is None
+        true = trainer.selector.standardise(torch.from_numpy(data.z)).numpy()
+    assert seen and all(pools is not None for pools in seen) and trainer.eps_pools is None
+    own_first = [np.allclose(pool[0], true[row]) for row, pool in enumerate(seen[0]) if len(pool)]
+    assert own_first and all(own_first) == (kind == "neighbour")

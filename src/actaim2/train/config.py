@@ -20,7 +20,7 @@ from actaim2.models.selector_base import SelectorConfig
 
 CONFIG_DIR = Path(__file__).parent / "configs"
 PHASES = ("selector", "predictor", "joint")
-PREDICTOR_EPS = ("true", "served")
+PREDICTOR_EPS = ("true", "served", "neighbour")
 SELECTOR_CONDITIONS = ("own", "object")
 
 
@@ -84,9 +84,12 @@ class TrainConfig:
     predictor_samplers: tuple[str, ...] = ()
     # The eps the predictor phase feeds (train/served_eps.py): "true" (the trajectory's own, plus
     # eps_noise; the paper) or "served" (a draw of the selector's clusters whose nearest true eps is
-    # the trajectory's, ``served_draws`` per cluster and trajectory; true eps + noise where none is).
+    # the trajectory's, ``served_draws`` per cluster and trajectory; true eps + noise where none is) or
+    # "neighbour" (the true eps of the trajectory or of one of its ``neighbour_count`` nearest in eps among
+    # its object's others: another placement, mostly the same outcome).
     predictor_eps: str = "true"
     served_draws: int = 8
+    neighbour_count: int = 2
     # The O_init the selector phase conditions each trajectory on: "own" (the paper) or "object" (that of a random
     # trajectory of the same object, itself included). Why "object": every trajectory's placement jitter shows in its
     # O_init, so with its own the conditional prior can learn one eps per O_init and needs no cluster for another
@@ -114,6 +117,8 @@ class TrainConfig:
             raise ValueError(f"selector_condition must be one of {SELECTOR_CONDITIONS}, got {self.selector_condition!r}")
         if self.served_draws < 1:
             raise ValueError(f"served_draws must be >= 1, got {self.served_draws}")
+        if self.neighbour_count < 1:
+            raise ValueError(f"neighbour_count must be >= 1, got {self.neighbour_count}")
         if self.mode_contrast < 0.0:
             raise ValueError(f"mode_contrast must be >= 0 (0: off), got {self.mode_contrast}")
         if self.conditioning_lr_scale <= 0.0:

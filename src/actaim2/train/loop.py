@@ -47,7 +47,7 @@ from actaim2.train.data import TrainingData
 from actaim2.train.distributed import DistContext, rank_slice, wrap
 from actaim2.train.elbo import selector_loss
 from actaim2.train.mode_contrast import contrast_partners, draw_partners, mode_contrast_loss
-from actaim2.train.served_eps import pick_served, served_eps_pools
+from actaim2.train.served_eps import neighbour_eps_pools, pick_from_pools, served_eps_pools
 
 STATE = "train_state"
 POLICY = "policy"
@@ -100,7 +100,7 @@ class Trainer:
         self.phase_index, self.step, self.optimizer_state = 0, 0, None
         self.temperature = gumbel_temperature(0.0)  # the CGMVAE's Gumbel-softmax temperature, annealed per epoch
         self.partners = self._contrast_partners() if config.mode_contrast > 0.0 else None
-        self.served_pools: list[np.ndarray] | None = None  # per trajectory, during a "served" predictor phase
+        self.eps_pools: list[np.ndarray] | None = None  # per trajectory, in a "served" or "neighbour" predictor phase
         self.same_object = self._same_object() if config.selector_condition == "object" else None
         if init_from is not None:
             self._init_from(init_from)
@@ -293,12 +293,17 @@ class Trainer:
         if phase == "predictor" and self.config.predictor_eps == "served":  # the selector is fixed from here on
             self.selector.eval()
             trajectories = np.unique(items[:, 0])
-            self.served_pools = served_eps_pools(self.selector, self.train, [object_of(i) for i in self.train.ids],
-                                                 trajectories, self.config.served_draws, self.device, self.config.seed)
+            self.eps_pools = served_eps_pools(self.selector, self.train, [object_of(i) for i in self.train.ids],
+                                              trajectories, self.config.served_draws, self.device, self.config.seed)
             if self.ctx.is_main:
-                held = [len(p) for p in self.served_pools if len(p)]
+                held = [len(p) for p in self.eps_pools if len(p)]
                 print(f"served eps: {len(held)} of {len(trajectories)} trajectories hold draws "
                       f"(median {int(np.median(held)) if held else 0} each); the others keep their true eps")
+        if phase == "predictor" and self.config.predictor_eps == "neighbour":
+            with torch.no_grad():
+                true = self.selector.standardise(torch.from_numpy(self.train.z).to(self.device)).cpu().numpy()
+            self.eps_pools = neighbour_eps_pools(true, [object_of(i) for i in self.train.ids], np.unique(items[:, 0]),
+                                                 self.config.neighbour_count)
         last_save, t0, metrics = time.monotonic(), time.monotonic(), {}
         bar = tqdm(total=total, initial=self.step, desc=f"{phase}", disable=not self.show)
         for m in self._modules(phase):
@@ -326,7 +331,7 @@ class Trainer:
                 self.save_state(optimizer, phase)
                 last_save = time.monotonic()
         bar.close()
-        self.served_pools = None
+        self.eps_pools = None
         return PhaseResult(total, time.monotonic() - t0, metrics)
 
     def _autocast(self):
@@ -417,12 +422,12 @@ class Trainer:
 
     def training_eps(self, eps: torch.Tensor, rows: np.ndarray, rng: np.random.Generator | None) -> torch.Tensor:
         """The eps a training batch of trajectories ``rows`` feeds the predictor: ``eps`` plus noise,
-        and, in a "served" predictor phase, a draw of the selector for every trajectory whose pool
-        holds one (train/served_eps.py). Validation (no ``rng``) feeds ``eps`` as given."""
+        and, in a "served" or "neighbour" predictor phase, an eps of the pool of every trajectory whose
+        pool holds one (train/served_eps.py). Validation (no ``rng``) feeds ``eps`` as given."""
         eps = self.perturb_eps(eps, rng)
-        if self.served_pools is None or rng is None:
+        if self.eps_pools is None or rng is None:
             return eps
-        positions, drawn = pick_served(self.served_pools, rows, rng)
+        positions, drawn = pick_from_pools(self.eps_pools, rows, rng)
         if len(positions):
             eps = eps.clone()
             eps[torch.from_numpy(positions).to(eps.device)] = torch.from_numpy(drawn).to(eps.device, eps.dtype)
