@@ -181,3 +181,15 @@ def test_neighbour_eps_is_fit_demos_but_for_the_eps_the_predictor_reads_for_ten_
 def test_a_neighbour_count_of_zero_is_refused():
     with pytest.raises(ValueError, match="neighbour_count must be >= 1"):
         TrainConfig.from_dict({"predictor_eps": "neighbour", "neighbour_count": 0})
+
+
+def test_served_eps_noise_free_is_fit_demos_but_for_the_noise_free_served_draws_for_ten_epochs():
+    fit, step = load_config("fit_demos"), load_config("served_eps_noise_free")
+    assert (step.predictor_eps, step.served_draws, step.served_noise_scale, step.predictor_phase.epochs) == ("served", 1, 0.0, 10)
+    assert dataclasses.replace(step, predictor_eps="true", served_draws=8, served_noise_scale=1.0,
+                               predictor_phase=fit.predictor_phase) == fit
+
+
+def test_a_negative_served_noise_scale_is_refused():
+    with pytest.raises(ValueError, match="served_noise_scale must be >= 0"):
+        TrainConfig.from_dict({"predictor_eps": "served", "served_noise_scale": -1.0})

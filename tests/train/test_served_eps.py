@@ -53,6 +53,23 @@ def test_each_draw_goes_to_its_objects_nearest_trajectory(tmp_path):
     assert not any(np.allclose(eps, true[r]) for r, pool in enumerate(pools) for eps in pool)
 
 
+def test_at_noise_scale_0_the_draws_are_the_clusters_noise_free_eps(tmp_path):
+    data = _data()
+    with single_torch_thread():
+        selector = _trainer(data, tmp_path).selector.eval()
+        rows = np.arange(len(data))
+        pools = served_eps_pools(selector, data, [object_of(i) for i in data.ids], rows, 2, torch.device("cpu"),
+                                 noise_scale=0.0)
+        views, _ = data.selector_batch(rows)
+        centres = selector.cluster_centres(*selector.condition(views)).detach().numpy()  # (N, K, eps_size)
+    drawn = np.concatenate([p for p in pools if len(p)])
+    assert len(drawn) == len(data) * selector.config.clusters * 2
+    # Every draw is one of the K noise-free eps of some O_init, each twice (the two draws are the same).
+    distance = np.linalg.norm(drawn[:, None] - centres.reshape(-1, centres.shape[-1])[None], axis=-1).min(axis=1)
+    assert np.all(distance < 1e-4)
+    assert len(np.unique(drawn.round(4), axis=0)) == len(data) * selector.config.clusters
+
+
 def test_a_selector_without_clusters_gives_draws_from_its_one_gaussian(tmp_path):
     data = _data(6)
     with single_torch_thread():

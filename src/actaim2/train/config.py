@@ -89,6 +89,7 @@ class TrainConfig:
     # its object's others: another placement, mostly the same outcome).
     predictor_eps: str = "true"
     served_draws: int = 8
+    served_noise_scale: float = 1.0  # the spread of those draws (ModeSelector.sample; 0: each cluster's noise-free eps)
     neighbour_count: int = 2
     # The O_init the selector phase conditions each trajectory on: "own" (the paper) or "object" (that of a random
     # trajectory of the same object, itself included). Why "object": every trajectory's placement jitter shows in its
@@ -117,6 +118,8 @@ class TrainConfig:
             raise ValueError(f"selector_condition must be one of {SELECTOR_CONDITIONS}, got {self.selector_condition!r}")
         if self.served_draws < 1:
             raise ValueError(f"served_draws must be >= 1, got {self.served_draws}")
+        if not self.served_noise_scale >= 0.0:
+            raise ValueError(f"served_noise_scale must be >= 0, got {self.served_noise_scale}")
         if self.neighbour_count < 1:
             raise ValueError(f"neighbour_count must be >= 1, got {self.neighbour_count}")
         if self.mode_contrast < 0.0:

@@ -294,7 +294,8 @@ class Trainer:
             self.selector.eval()
             trajectories = np.unique(items[:, 0])
             self.eps_pools = served_eps_pools(self.selector, self.train, [object_of(i) for i in self.train.ids],
-                                              trajectories, self.config.served_draws, self.device, self.config.seed)
+                                              trajectories, self.config.served_draws, self.device, self.config.seed,
+                                              self.config.served_noise_scale)
             if self.ctx.is_main:
                 held = [len(p) for p in self.eps_pools if len(p)]
                 print(f"served eps: {len(held)} of {len(trajectories)} trajectories hold draws "

@@ -43,8 +43,8 @@ def nearest_true(drawn: torch.Tensor, true: torch.Tensor) -> np.ndarray:
 
 @torch.no_grad()
 def served_eps_pools(selector: ModeSelector, data: TrainingData, objects: Sequence[str], rows: np.ndarray,
-                     draws: int, device: torch.device, seed: int = 0) -> list[np.ndarray]:
-    """Per trajectory of ``data``, the (n, eps_size) drawn eps whose nearest true eps is its own.
+                     draws: int, device: torch.device, seed: int = 0, noise_scale: float = 1.0) -> list[np.ndarray]:
+    """Per trajectory of ``data``, the (n, eps_size) drawn eps (at ``noise_scale``) whose nearest true eps is its own.
 
     Only the trajectories in ``rows`` (those the predictor learns keyposes from) receive draws and
     are candidates; every other trajectory's pool is empty. A selector without discrete modes
@@ -63,7 +63,7 @@ def served_eps_pools(selector: ModeSelector, data: TrainingData, objects: Sequen
         true = selector.standardise(z)
         for k in range(len(members)):
             condition = views[k:k + 1].expand(draws, *views.shape[1:])
-            drawn = torch.cat([selector.sample(condition, c, generator).eps for c in clusters])
+            drawn = torch.cat([selector.sample(condition, c, generator, noise_scale).eps for c in clusters])
             for eps, owner in zip(drawn.cpu().numpy(), nearest_true(drawn, true)):
                 pools[members[owner]].append(eps)
     size = selector.config.eps_size
