@@ -4,7 +4,8 @@ Phases (``TrainConfig.phases``, in order):
   selector   the mode selector alone on (O_init, z): its loss (train/elbo.py).
   predictor  the action predictor alone on keyframes (O_i, a_i) fed the trajectory's *true*
              standardised z as eps. The result is the Goal-RVT baseline. With
-             ``predictor_eps: served`` it is fed the selector's draws instead (train/served_eps.py).
+             ``predictor_eps: served`` it is fed the selector's draws instead, with
+             ``neighbour`` a same-object neighbour's true eps (train/served_eps.py).
   joint      both: L_action(predictor(O_i, sg[eps_hat])) + w L_ELBO, eps_hat the selector's
              reconstruction of the trajectory's z; the stop-gradient keeps the action loss
              out of the selector (paper, "Training Procedure").
