@@ -28,7 +28,8 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from actaim2.perception.config import load_perception_config
-from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, MODE_GUIDANCE, NOISE_SCALE, ROLES, PolicyLoadError, PolicyModel
+from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, MODE_GUIDANCE, NOISE_SCALE, ROLES, PolicyLoadError, PolicyModel, \
+    check_noise_scale
 from actaim2.policy.locate import COMMITTED, installed_folders, resolve_checkpoint
 from actaim2.policy.requests import NO_VIEWS, RequestError, check_cluster, check_embedding, check_fresh, check_phase
 from actaim2.policy.views import Views, accept_views
@@ -81,9 +82,7 @@ class PolicyNode(Node):
         self._guidance = float(p["mode_guidance"])
         if not self._guidance >= 0.0:
             raise ValueError(f"mode_guidance {self._guidance} is not a weight >= 0")
-        self._noise_scale = float(p["noise_scale"])
-        if not self._noise_scale >= 0.0:
-            raise ValueError(f"noise_scale {self._noise_scale} is not a scale >= 0")
+        self._noise_scale = check_noise_scale(float(p["noise_scale"]))
         self._model: PolicyModel | None = None
         self._load_error = ""
         try:

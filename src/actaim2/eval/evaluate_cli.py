@@ -151,7 +151,7 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.eval.worker import EvalWorker, WorkerSetup
     from actaim2.parallel import ray_available
     from actaim2.perception.config import load_perception_config
-    from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, MODE_GUIDANCE, NOISE_SCALE
+    from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, MODE_GUIDANCE, NOISE_SCALE, check_noise_scale
 
     preset = _preset(args)
     half_turn = POLICY_PLANNER.hand_half_turn if args.hand_half_turn is None else args.hand_half_turn
@@ -166,8 +166,7 @@ def main(args: argparse.Namespace) -> int:
             raise ValueError(f"--keypose-alternatives {alternatives} is negative")
         if not guidance >= 0.0:
             raise ValueError(f"--mode-guidance {guidance} is not a weight >= 0")
-        if not noise_scale >= 0.0:
-            raise ValueError(f"--noise-scale {noise_scale} is not a scale >= 0")
+        check_noise_scale(noise_scale, "--noise-scale")
         stems, methods = _methods(args)
         described = {m: describe(stems[m]) for m in methods if m in stems}
         for m in (m for m in ABLATIONS if m in described):

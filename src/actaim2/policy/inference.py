@@ -55,6 +55,14 @@ MODE_GUIDANCE = 0.0
 # Spread of the selector's latent draws /sample_mode uses by default (policy_node, the evaluation;
 # ModeSelector.sample's noise_scale): 1 samples the trained distribution.
 NOISE_SCALE = 1.0
+
+
+def check_noise_scale(value: float, name: str = "noise_scale") -> float:
+    """``value`` if it is a noise scale (>= 0; NaN is not); a ValueError naming ``name`` (a parameter or flag) otherwise."""
+    if not value >= 0.0:
+        raise ValueError(f"{name} {value} is not a scale >= 0")
+    return value
+
 # Fallback rotations are this far apart (up to the hand's half turn): closer ones meet the same obstacles.
 ALTERNATIVE_SEPARATION_DEG = 30.0
 
@@ -146,8 +154,7 @@ class PolicyModel:
     @torch.no_grad()
     def sample_mode(self, views: Views, cluster: int, seed: int, noise_scale: float = NOISE_SCALE) -> ModeSample:
         """``noise_scale``: the spread of the latent draw (``ModeSelector.sample``; 0 = the cluster's noise-free eps)."""
-        if not noise_scale >= 0.0:
-            raise ValueError(f"noise_scale {noise_scale} is not a scale >= 0")
+        check_noise_scale(noise_scale)
         if self.selector is None:
             raise RequestError(f"{self.stem} holds no mode selector (an action predictor alone): /sample_mode is unavailable")
         chosen = check_cluster(cluster, self.clusters)

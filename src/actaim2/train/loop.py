@@ -279,6 +279,25 @@ class Trainer:
         return [{"params": [p for p in params if id(p) not in own], "lr_scale": 1.0},
                 {"params": conditioning, "lr_scale": scale}]
 
+    @torch.no_grad()
+    def _eps_pools(self, trajectories: np.ndarray) -> list[np.ndarray] | None:
+        """The per-trajectory eps pools a "served" or "neighbour" predictor phase feeds from (train/served_eps.py),
+        for the predictor's ``trajectories``; None for "true" eps. The selector is fixed from here on."""
+        objects = [object_of(i) for i in self.train.ids]
+        if self.config.predictor_eps == "neighbour":
+            true = self.selector.standardise(torch.from_numpy(self.train.z).to(self.device)).cpu().numpy()
+            return neighbour_eps_pools(true, objects, trajectories, self.config.neighbour_count)
+        if self.config.predictor_eps != "served":
+            return None
+        self.selector.eval()
+        pools = served_eps_pools(self.selector, self.train, objects, trajectories, self.config.served_draws, self.device,
+                                 self.config.seed, self.config.served_noise_scale)
+        if self.ctx.is_main:
+            held = [len(p) for p in pools if len(p)]
+            print(f"served eps: {len(held)} of {len(trajectories)} trajectories hold draws "
+                  f"(median {int(np.median(held)) if held else 0} each); the others keep their true eps")
+        return pools
+
     def _run_phase(self, phase: str) -> PhaseResult:
         cfg = self.config.phase(phase)
         items = self._items(phase, self.train)
@@ -291,21 +310,8 @@ class Trainer:
         if self.optimizer_state is not None:
             optimizer.load_state_dict(self.optimizer_state)
         wrapped = {m: wrap(m, self.ctx) for m in self._modules(phase)}
-        if phase == "predictor" and self.config.predictor_eps == "served":  # the selector is fixed from here on
-            self.selector.eval()
-            trajectories = np.unique(items[:, 0])
-            self.eps_pools = served_eps_pools(self.selector, self.train, [object_of(i) for i in self.train.ids],
-                                              trajectories, self.config.served_draws, self.device, self.config.seed,
-                                              self.config.served_noise_scale)
-            if self.ctx.is_main:
-                held = [len(p) for p in self.eps_pools if len(p)]
-                print(f"served eps: {len(held)} of {len(trajectories)} trajectories hold draws "
-                      f"(median {int(np.median(held)) if held else 0} each); the others keep their true eps")
-        if phase == "predictor" and self.config.predictor_eps == "neighbour":
-            with torch.no_grad():
-                true = self.selector.standardise(torch.from_numpy(self.train.z).to(self.device)).cpu().numpy()
-            self.eps_pools = neighbour_eps_pools(true, [object_of(i) for i in self.train.ids], np.unique(items[:, 0]),
-                                                 self.config.neighbour_count)
+        if phase == "predictor":
+            self.eps_pools = self._eps_pools(np.unique(items[:, 0]))
         last_save, t0, metrics = time.monotonic(), time.monotonic(), {}
         bar = tqdm(total=total, initial=self.step, desc=f"{phase}", disable=not self.show)
         for m in self._modules(phase):

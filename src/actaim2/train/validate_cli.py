@@ -40,7 +40,7 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.data.storage import object_of
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.perception.config import load_perception_config
-    from actaim2.policy.inference import NOISE_SCALE
+    from actaim2.policy.inference import NOISE_SCALE, check_noise_scale
     from actaim2.train import checkpoint
     from actaim2.train.curves import plot_curves, read_history
     from actaim2.train.data import dataset_digest, ensure_cache, open_cache
@@ -52,8 +52,10 @@ def main(args: argparse.Namespace) -> int:
         print(f"actaim2 validate: --threads {args.threads} is negative")
         return 2
     noise_scale = NOISE_SCALE if args.noise_scale is None else args.noise_scale
-    if not noise_scale >= 0.0:
-        print(f"actaim2 validate: --noise-scale {noise_scale} is not a scale >= 0")
+    try:
+        check_noise_scale(noise_scale, "--noise-scale")
+    except ValueError as exc:
+        print(f"actaim2 validate: {exc}")
         return 2
     set_cpu_threads(args.threads)
     stem = args.checkpoint or args.run / "policy"
