@@ -190,6 +190,12 @@ def test_served_eps_noise_free_is_fit_demos_but_for_the_noise_free_served_draws_
                                predictor_phase=fit.predictor_phase) == fit
 
 
+def test_nearest_centre_eps_is_fit_demos_but_for_the_eps_the_predictor_reads_for_ten_epochs():
+    fit, step = load_config("fit_demos"), load_config("nearest_centre_eps")
+    assert (step.predictor_eps, step.predictor_phase.epochs) == ("nearest_centre", 10)
+    assert dataclasses.replace(step, predictor_eps="true", predictor_phase=fit.predictor_phase) == fit
+
+
 def test_a_negative_served_noise_scale_is_refused():
     with pytest.raises(ValueError, match="served_noise_scale must be >= 0"):
         TrainConfig.from_dict({"predictor_eps": "served", "served_noise_scale": -1.0})

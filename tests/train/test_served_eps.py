@@ -1,7 +1,7 @@
 """Served and neighbour eps (train/served_eps.py): every draw of the selector lands in the pool of its
 object's trajectory whose true eps lies nearest, only the predictor's trajectories take draws, a
-neighbour pool holds the trajectory's own true eps and its nearest same-object ones, and a "served"
-or "neighbour" predictor phase feeds a keyframe an eps of its trajectory's pool (its true eps plus
+neighbour pool holds the trajectory's own true eps and its nearest same-object ones, a nearest-centre
+pool holds the cluster centre of the trajectory's own O_init nearest its true eps, and a pooled predictor phase feeds a keyframe an eps of its trajectory's pool (its true eps plus
 noise where the pool is empty) in training batches only."""
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from actaim2.data.storage import object_of
 from actaim2.train.checkpoint import perception_record
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer
-from actaim2.train.served_eps import neighbour_eps_pools, pick_from_pools, served_eps_pools
+from actaim2.train.served_eps import nearest_centre_pools, neighbour_eps_pools, pick_from_pools, served_eps_pools
 from synthetic import PLACEMENT, make_dataset
 from test_stop_gradient import TINY
 from torch_threads import single_torch_thread
@@ -96,6 +96,25 @@ def test_a_neighbour_pool_holds_the_own_eps_and_the_nearest_of_the_same_object()
         neighbour_eps_pools(true, objects, np.array([0]), count=0)
 
 
+def test_a_nearest_centre_pool_holds_the_own_o_inits_cluster_eps_nearest_the_true_eps(tmp_path):
+    data = _data()
+    with single_torch_thread():
+        selector = _trainer(data, tmp_path).selector.eval()
+        rows = np.array([0, 2, 3, 5, 7])
+        pools, chosen = nearest_centre_pools(selector, data, rows, torch.device("cpu"), chunk=2)
+        views, z = data.selector_batch(np.arange(len(data)))
+        centres = selector.cluster_centres(*selector.condition(views)).detach().numpy()  # (N, K, eps_size)
+        true = selector.standardise(z).numpy()
+    assert [len(pools[r]) for r in (1, 4, 6, 8)] == [0, 0, 0, 0]
+    for row, cluster in zip(rows, chosen):
+        distance = np.linalg.norm(centres[row] - true[row], axis=1)  # its own O_init's K centres only
+        assert cluster == np.argmin(distance)
+        np.testing.assert_allclose(pools[row], centres[row, cluster][None], atol=1e-5)
+    with pytest.raises(ValueError, match="need a selector with clusters"):
+        nearest_centre_pools(_trainer(data, tmp_path, selector=dataclasses.replace(TINY.selector, kind="cvae")).selector,
+                             data, rows, torch.device("cpu"))
+
+
 def test_picks_come_from_the_rows_own_pools():
     pools = [np.zeros((0, 2), np.float32), np.array([[1.0, 1.0], [2.0, 2.0]], np.float32), np.array([[5.0, 5.0]], np.float32)]
     positions, picked = pick_from_pools(pools, np.array([0, 2, 1, 0]), np.random.default_rng(0))
@@ -103,7 +122,7 @@ def test_picks_come_from_the_rows_own_pools():
     assert picked[0].tolist() == [5.0, 5.0] and picked[1].tolist() in ([1.0, 1.0], [2.0, 2.0])
 
 
-@pytest.mark.parametrize("kind", ["served", "neighbour"])
+@pytest.mark.parametrize("kind", ["served", "neighbour", "nearest_centre"])
 def test_a_pooled_predictor_phase_feeds_pool_eps_in_training_batches_only(tmp_path, kind):
     data = _data()
     with single_torch_thread():
@@ -116,7 +135,7 @@ def test_a_pooled_predictor_phase_feeds_pool_eps_in_training_batches_only(tmp_pa
         assert torch.all(fed[0] == 7.0) and torch.all(fed[2] == 9.0)
         assert not torch.equal(fed[1], eps[1]) and torch.allclose(fed[1], eps[1], atol=4.0)  # true eps plus noise
         assert torch.equal(trainer.training_eps(eps, np.array([0, 1, 2]), None), eps)  # validation batches: as given
-        # The phase builds the pools (from the selector's draws, or from the true eps), then drops them: the
+        # The phase builds the pools (from the selector's draws or centres, or from the true eps), then drops them: the
         # joint phase reads the selector's eps.
         trainer.eps_pools = None
         trainer.config = dataclasses.replace(trainer.config, phases=("predictor",),
@@ -129,3 +148,5 @@ def test_a_pooled_predictor_phase_feeds_pool_eps_in_training_batches_only(tmp_pa
     assert seen and all(pools is not None for pools in seen) and trainer.eps_pools is None
     own_first = [np.allclose(pool[0], true[row]) for row, pool in enumerate(seen[0]) if len(pool)]
     assert own_first and all(own_first) == (kind == "neighbour")
+    if kind == "nearest_centre":  # one centre for every trajectory the predictor learns from
+        assert all(len(pool) == 1 for pool in seen[0]) and len(seen[0]) == len(data)

@@ -20,7 +20,7 @@ from actaim2.models.selector_base import SelectorConfig
 
 CONFIG_DIR = Path(__file__).parent / "configs"
 PHASES = ("selector", "predictor", "joint")
-PREDICTOR_EPS = ("true", "served", "neighbour")
+PREDICTOR_EPS = ("true", "served", "neighbour", "nearest_centre")
 SELECTOR_CONDITIONS = ("own", "object")
 
 
@@ -86,7 +86,8 @@ class TrainConfig:
     # eps_noise; the paper) or "served" (a draw of the selector's clusters whose nearest true eps is
     # the trajectory's, ``served_draws`` per cluster and trajectory; true eps + noise where none is) or
     # "neighbour" (the true eps of the trajectory or of one of its ``neighbour_count`` nearest in eps among
-    # its object's others: another placement, mostly the same outcome).
+    # its object's others: another placement, mostly the same outcome) or "nearest_centre" (of the K clusters'
+    # noise-free eps on the trajectory's own O_init, the one nearest its true eps: what noise scale 0 serves).
     predictor_eps: str = "true"
     served_draws: int = 8
     served_noise_scale: float = 1.0  # the spread of those draws (ModeSelector.sample; 0: each cluster's noise-free eps)

@@ -5,7 +5,8 @@ Phases (``TrainConfig.phases``, in order):
   predictor  the action predictor alone on keyframes (O_i, a_i) fed the trajectory's *true*
              standardised z as eps. The result is the Goal-RVT baseline. With
              ``predictor_eps: served`` it is fed the selector's draws instead, with
-             ``neighbour`` a same-object neighbour's true eps (train/served_eps.py).
+             ``neighbour`` a same-object neighbour's true eps, with ``nearest_centre`` the
+             noise-free cluster eps of its own O_init nearest its true eps (train/served_eps.py).
   joint      both: L_action(predictor(O_i, sg[eps_hat])) + w L_ELBO, eps_hat the selector's
              reconstruction of the trajectory's z; the stop-gradient keeps the action loss
              out of the selector (paper, "Training Procedure").
@@ -48,7 +49,7 @@ from actaim2.train.data import TrainingData
 from actaim2.train.distributed import DistContext, rank_slice, wrap
 from actaim2.train.elbo import selector_loss
 from actaim2.train.mode_contrast import contrast_partners, draw_partners, mode_contrast_loss
-from actaim2.train.served_eps import neighbour_eps_pools, pick_from_pools, served_eps_pools
+from actaim2.train.served_eps import nearest_centre_pools, neighbour_eps_pools, pick_from_pools, served_eps_pools
 
 STATE = "train_state"
 POLICY = "policy"
@@ -281,15 +282,21 @@ class Trainer:
 
     @torch.no_grad()
     def _eps_pools(self, trajectories: np.ndarray) -> list[np.ndarray] | None:
-        """The per-trajectory eps pools a "served" or "neighbour" predictor phase feeds from (train/served_eps.py),
+        """The per-trajectory eps pools a "served", "neighbour" or "nearest_centre" predictor phase feeds from (train/served_eps.py),
         for the predictor's ``trajectories``; None for "true" eps. The selector is fixed from here on."""
         objects = [object_of(i) for i in self.train.ids]
         if self.config.predictor_eps == "neighbour":
             true = self.selector.standardise(torch.from_numpy(self.train.z).to(self.device)).cpu().numpy()
             return neighbour_eps_pools(true, objects, trajectories, self.config.neighbour_count)
-        if self.config.predictor_eps != "served":
+        if self.config.predictor_eps == "true":
             return None
         self.selector.eval()
+        if self.config.predictor_eps == "nearest_centre":
+            pools, chosen = nearest_centre_pools(self.selector, self.train, trajectories, self.device)
+            if self.ctx.is_main:
+                print(f"nearest-centre eps: trajectories per cluster "
+                      f"{np.bincount(chosen, minlength=self.selector.config.clusters).tolist()}")
+            return pools
         pools = served_eps_pools(self.selector, self.train, objects, trajectories, self.config.served_draws, self.device,
                                  self.config.seed, self.config.served_noise_scale)
         if self.ctx.is_main:

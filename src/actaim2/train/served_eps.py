@@ -24,6 +24,13 @@ evaluation the most frequent outcome of a cluster's four samples on one object w
 The nearest other true eps of an object has the trajectory's outcome 86 % of the time on ``data/v2s``,
 its placement never: fed it, the predictor has to find where to act in the views and read from eps
 only what the neighbours share.
+
+Nearest-centre eps (``nearest_centre_pools``) quantise each true eps onto what the evaluation serves at
+noise scale 0: the K clusters' noise-free eps computed on the trajectory's *own* O_init, of which the
+one nearest its true eps. Why: served pools hand a trajectory draws computed on other placements' O_init
+and leave it its true eps where no draw is nearest, so neither is what the predictor reads at s = 0,
+where a cluster's eps is one point computed on the very views it is fed with. Quantised, a cluster's
+centre on an O_init is trained towards the keyposes of the trajectories whose eps it stands for.
 """
 from __future__ import annotations
 
@@ -68,6 +75,28 @@ def served_eps_pools(selector: ModeSelector, data: TrainingData, objects: Sequen
                 pools[members[owner]].append(eps)
     size = selector.config.eps_size
     return [np.stack(p).astype(np.float32) if p else np.zeros((0, size), np.float32) for p in pools]
+
+
+@torch.no_grad()
+def nearest_centre_pools(selector: ModeSelector, data: TrainingData, rows: np.ndarray, device: torch.device,
+                         chunk: int = 64) -> tuple[list[np.ndarray], np.ndarray]:
+    """Per trajectory of ``data``, a (1, eps_size) pool holding the noise-free eps of the cluster, among the K
+    computed on its own O_init (``ModeSelector.cluster_centres``), nearest its true eps; empty outside ``rows``.
+    Also the (len(rows),) cluster each of ``rows`` was quantised to. A selector without discrete modes is refused."""
+    if selector.config.kind == "cvae":
+        raise ValueError("nearest-centre eps need a selector with clusters; a cvae selector has one Gaussian")
+    rows = np.asarray(rows)
+    pools = [np.zeros((0, selector.config.eps_size), np.float32) for _ in range(len(data))]
+    chosen = np.zeros(len(rows), np.int64)
+    for start in range(0, len(rows), chunk):
+        part = rows[start:start + chunk]
+        views, z = data.selector_batch(part, device)
+        centres = selector.cluster_centres(*selector.condition(views))  # (n, K, eps_size)
+        nearest = (centres - selector.standardise(z)[:, None]).norm(dim=-1).argmin(dim=1)
+        chosen[start:start + len(part)] = nearest.cpu().numpy()
+        for row, eps in zip(part, centres[torch.arange(len(part), device=centres.device), nearest].cpu().numpy()):
+            pools[row] = eps[None].astype(np.float32)
+    return pools, chosen
 
 
 def neighbour_eps_pools(true: np.ndarray, objects: Sequence[str], rows: np.ndarray, count: int) -> list[np.ndarray]:
