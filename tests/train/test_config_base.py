@@ -166,6 +166,11 @@ def test_cluster_coverage_and_the_selector_condition_runs_differ_from_cluster_ba
     assert dataclasses.replace(both, elbo=plain.elbo) == condition and both.elbo == coverage.elbo
 
 
+def test_selector_condition_coverage_10_is_the_same_run_at_ten_times_the_coverage():
+    one, ten = load_config("selector_condition_coverage"), load_config("selector_condition_coverage_10")
+    assert ten.elbo.cluster_coverage == 10.0 and dataclasses.replace(ten, elbo=one.elbo) == one
+
+
 def test_fit_demos_is_structured_demos_without_augmentation_or_eps_noise():
     base, step = load_config("structured_demos"), load_config("fit_demos")
     assert base.augment and base.eps_noise == 0.5 and not step.augment and step.eps_noise == 0.0
