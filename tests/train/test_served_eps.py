@@ -1,8 +1,9 @@
-"""Served and neighbour eps (train/served_eps.py): every draw of the selector lands in the pool of its
-object's trajectory whose true eps lies nearest, only the predictor's trajectories take draws, a
-neighbour pool holds the trajectory's own true eps and its nearest same-object ones, a nearest-centre
-pool holds the cluster centre of the trajectory's own O_init nearest its true eps, and a pooled predictor phase feeds a keyframe an eps of its trajectory's pool (its true eps plus
-noise where the pool is empty) in training batches only."""
+"""Served, neighbour and nearest-centre eps (train/served_eps.py): every draw of the selector lands in
+the pool of its object's trajectory whose true eps lies nearest, only the predictor's trajectories take
+draws, a neighbour pool holds the trajectory's own true eps and its nearest same-object ones, a
+nearest-centre pool holds the cluster centre of the trajectory's own O_init nearest its true eps, and a
+pooled predictor phase feeds a keyframe an eps of its trajectory's pool (its true eps plus noise where
+the pool is empty) in training batches only."""
 from __future__ import annotations
 
 import dataclasses
@@ -111,8 +112,8 @@ def test_a_nearest_centre_pool_holds_the_own_o_inits_cluster_eps_nearest_the_tru
         assert cluster == np.argmin(distance)
         np.testing.assert_allclose(pools[row], centres[row, cluster][None], atol=1e-5)
     with pytest.raises(ValueError, match="need a selector with clusters"):
-        nearest_centre_pools(_trainer(data, tmp_path, selector=dataclasses.replace(TINY.selector, kind="cvae")).selector,
-                             data, rows, torch.device("cpu"))
+        cvae = _trainer(data, tmp_path, selector=dataclasses.replace(TINY.selector, kind="cvae")).selector
+        nearest_centre_pools(cvae, data, rows, torch.device("cpu"))
 
 
 def test_picks_come_from_the_rows_own_pools():

@@ -282,8 +282,9 @@ class Trainer:
 
     @torch.no_grad()
     def _eps_pools(self, trajectories: np.ndarray) -> list[np.ndarray] | None:
-        """The per-trajectory eps pools a "served", "neighbour" or "nearest_centre" predictor phase feeds from (train/served_eps.py),
-        for the predictor's ``trajectories``; None for "true" eps. The selector is fixed from here on."""
+        """The per-trajectory eps pools a "served", "neighbour" or "nearest_centre" predictor phase feeds from
+        (train/served_eps.py), for the predictor's ``trajectories``; None for "true" eps. The selector is fixed
+        from here on."""
         objects = [object_of(i) for i in self.train.ids]
         if self.config.predictor_eps == "neighbour":
             true = self.selector.standardise(torch.from_numpy(self.train.z).to(self.device)).cpu().numpy()
