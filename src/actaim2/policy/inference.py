@@ -55,6 +55,8 @@ MODE_GUIDANCE = 0.0
 # Spread of the selector's latent draws /sample_mode uses by default (policy_node, the evaluation;
 # ModeSelector.sample's noise_scale): 1 samples the trained distribution.
 NOISE_SCALE = 1.0
+# Fallback rotations are this far apart (up to the hand's half turn): closer ones meet the same obstacles.
+ALTERNATIVE_SEPARATION_DEG = 30.0
 
 
 def check_noise_scale(value: float, name: str = "noise_scale") -> float:
@@ -62,9 +64,6 @@ def check_noise_scale(value: float, name: str = "noise_scale") -> float:
     if not value >= 0.0:
         raise ValueError(f"{name} {value} is not a scale >= 0")
     return value
-
-# Fallback rotations are this far apart (up to the hand's half turn): closer ones meet the same obstacles.
-ALTERNATIVE_SEPARATION_DEG = 30.0
 
 
 class PolicyLoadError(RuntimeError):

@@ -285,12 +285,12 @@ class Trainer:
         """The per-trajectory eps pools a "served", "neighbour" or "nearest_centre" predictor phase feeds from
         (train/served_eps.py), for the predictor's ``trajectories``; None for "true" eps. The selector is fixed
         from here on."""
+        if self.config.predictor_eps == "true":
+            return None
         objects = [object_of(i) for i in self.train.ids]
         if self.config.predictor_eps == "neighbour":
             true = self.selector.standardise(torch.from_numpy(self.train.z).to(self.device)).cpu().numpy()
             return neighbour_eps_pools(true, objects, trajectories, self.config.neighbour_count)
-        if self.config.predictor_eps == "true":
-            return None
         self.selector.eval()
         if self.config.predictor_eps == "nearest_centre":
             pools, chosen = nearest_centre_pools(self.selector, self.train, trajectories, self.device)

@@ -41,6 +41,7 @@ import torch
 
 from actaim2.models.selector_base import ModeSelector
 from actaim2.train.data import TrainingData
+from actaim2.train.elbo import reconstruction
 
 
 def nearest_true(drawn: torch.Tensor, true: torch.Tensor) -> np.ndarray:
@@ -92,7 +93,7 @@ def nearest_centre_pools(selector: ModeSelector, data: TrainingData, rows: np.nd
         part = rows[start:start + chunk]
         views, z = data.selector_batch(part, device)
         centres = selector.cluster_centres(*selector.condition(views))  # (n, K, eps_size)
-        nearest = (centres - selector.standardise(z)[:, None]).norm(dim=-1).argmin(dim=1)
+        nearest = reconstruction(centres, selector.standardise(z)[:, None]).argmin(dim=1)  # the coverage term's winner
         chosen[start:start + len(part)] = nearest.cpu().numpy()
         for row, eps in zip(part, centres[torch.arange(len(part), device=centres.device), nearest].cpu().numpy()):
             pools[row] = eps[None].astype(np.float32)
