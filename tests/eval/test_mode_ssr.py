@@ -1,10 +1,16 @@
 """Mode SSR with the split-half cluster choice, on synthetic outcome tables whose answer is known."""
 from __future__ import annotations
 
+from collections import Counter
+
 import numpy as np
 import pytest
 
+from actaim2.eval.evalset import catalogue_objects
 from actaim2.eval.mode_ssr import GroupSample, object_mode_ssr, pooled, rank_modes
+from actaim2.eval.presets import PRESETS
+from actaim2.eval.sources import pseudo_group
+from actaim2.eval.tasks import plan_tasks
 
 OPEN, CLOSE, OTHER = ("drawer", 1), ("drawer", -1), ("door", 1)
 
@@ -68,3 +74,17 @@ def test_structure_is_found(seed: int) -> None:
         results.append(object_mode_ssr(samples(table), 2, f"o{k}"))
     assert abs(pooled(results, 1).value - 0.9) < 0.05
     assert abs(pooled(results, 2).value - 0.6) < 0.06
+
+
+def test_full_preset_measures_every_rows_mode_ssr_on_as_many_half_b_samples() -> None:
+    """The acceptance compares ActAIM2's 2nd mode with "the same statistic" on Data Collection's pseudo-clusters
+    (and Table 2 has VQVAE-RVT's codes): every grouped row has as many half-B samples per group as ActAIM2."""
+    objects = catalogue_objects(("train_seen",), 1, ("storage_furniture", "faucet"))
+    tasks = plan_tasks({"actaim2": 8, "vqvae_rvt": 8, "data_collection": 0}, objects, PRESETS["full"].counts)
+    half_b: dict[str, Counter] = {m: Counter() for m in ("actaim2", "vqvae_rvt", "data_collection")}
+    for t in tasks:
+        group, repetition = (t.cluster, t.slot // t.clusters) if t.clusters else pseudo_group(t.obj.key, t.slot)
+        half_b[t.method][(t.obj.key, group)] += repetition % 2
+    for method, counts in half_b.items():
+        assert len(counts) == 8 * len(objects), method
+        assert set(counts.values()) == {2}, (method, counts)
