@@ -9,7 +9,7 @@ import pytest
 from actaim2.eval.evalset import catalogue_objects
 from actaim2.eval.mode_ssr import GroupSample, object_mode_ssr, pooled, rank_modes
 from actaim2.eval.presets import PRESETS
-from actaim2.eval.sources import pseudo_group
+from actaim2.eval.sources import task_group
 from actaim2.eval.tasks import plan_tasks
 
 OPEN, CLOSE, OTHER = ("drawer", 1), ("drawer", -1), ("door", 1)
@@ -83,7 +83,7 @@ def test_full_preset_measures_every_rows_mode_ssr_on_as_many_half_b_samples() ->
     tasks = plan_tasks({"actaim2": 8, "vqvae_rvt": 8, "data_collection": 0}, objects, PRESETS["full"].counts)
     half_b: dict[str, Counter] = {m: Counter() for m in ("actaim2", "vqvae_rvt", "data_collection")}
     for t in tasks:
-        group, repetition = (t.cluster, t.slot // t.clusters) if t.clusters else pseudo_group(t.obj.key, t.slot)
+        group, repetition = task_group(t)
         half_b[t.method][(t.obj.key, group)] += repetition % 2
     for method, counts in half_b.items():
         assert len(counts) == 8 * len(objects), method

@@ -84,6 +84,13 @@ def pseudo_group(key: str, slot: int) -> tuple[int, int]:
     return int(order[position]), repetition
 
 
+def task_group(task: EvalTask) -> tuple[int, int]:
+    """(group, repetition) of a sample drawn from a cluster or code, or of an unclustered method's (pseudo-cluster)."""
+    if task.clusters:
+        return task.cluster, task.slot // task.clusters
+    return pseudo_group(task.obj.key, task.slot)
+
+
 class ServedPolicy:
     """A policy checkpoint and the view makers of its two models (one when their views agree);
     ``alternatives``: fallback keyposes asked for with each one, ``guidance``: the mode guidance weight
@@ -125,10 +132,7 @@ class PolicySource(ServedPolicy):
         task = scene.task
         views = self.views("selector", scene.init_pictures, scene.env)
         sample = self.sample_mode(views, task.cluster if task.clusters else -1, task.sample_seed)
-        if task.clusters:
-            group, repetition = task.cluster, task.slot // task.clusters
-        else:
-            group, repetition = pseudo_group(task.obj.key, task.slot)
+        group, repetition = task_group(task)
         details = {"cluster": sample.cluster}
         return Plan(group, repetition, self.keyposes(scene, sample.eps, details), details, sample.eps)
 
@@ -193,7 +197,7 @@ class SamplerSource:
     def begin(self, scene: Scene) -> Plan:
         task = scene.task
         sampler = self.sampler if self.samplers is None else self.samplers.get(task.obj.key)
-        group, repetition = pseudo_group(task.obj.key, task.slot)
+        group, repetition = task_group(task)
         if sampler is None:
             raise NoSample(f"no sampler for {task.obj.key}", group, repetition)
         for _ in range(self.max_samples):
