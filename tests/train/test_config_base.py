@@ -183,6 +183,12 @@ def test_neighbour_eps_is_fit_demos_but_for_the_eps_the_predictor_reads_for_ten_
     assert dataclasses.replace(step, predictor_eps="true", predictor_phase=fit.predictor_phase) == fit
 
 
+def test_neighbour_eps_balanced_is_neighbour_eps_with_cluster_balanced_keyframes():
+    base, step = load_config("neighbour_eps"), load_config("neighbour_eps_balanced")
+    assert base.predictor_balance == "none" and step.predictor_balance == "cluster"
+    assert dataclasses.replace(step, predictor_balance="none") == base
+
+
 def test_a_neighbour_count_of_zero_is_refused():
     with pytest.raises(ValueError, match="neighbour_count must be >= 1"):
         TrainConfig.from_dict({"predictor_eps": "neighbour", "neighbour_count": 0})

@@ -22,6 +22,7 @@ CONFIG_DIR = Path(__file__).parent / "configs"
 PHASES = ("selector", "predictor", "joint")
 PREDICTOR_EPS = ("true", "served", "neighbour", "nearest_centre")
 SELECTOR_CONDITIONS = ("own", "object")
+PREDICTOR_BALANCES = ("none", "cluster")
 
 
 @dataclass(frozen=True)
@@ -92,6 +93,10 @@ class TrainConfig:
     served_draws: int = 8
     served_noise_scale: float = 1.0  # the spread of those draws (ModeSelector.sample; 0: each cluster's noise-free eps)
     neighbour_count: int = 2
+    # How the predictor phase draws its keyframes: "none" (uniformly, as collected; the paper) or "cluster"
+    # (within each object, every cluster its trajectories are quantised to carries an equal share:
+    # train/balance.py; the evaluation asks for each cluster equally often).
+    predictor_balance: str = "none"
     # The O_init the selector phase conditions each trajectory on: "own" (the paper) or "object" (that of a random
     # trajectory of the same object, itself included). Why "object": every trajectory's placement jitter shows in its
     # O_init, so with its own the conditional prior can learn one eps per O_init and needs no cluster for another
@@ -115,6 +120,8 @@ class TrainConfig:
             raise ValueError(f"rotation_sigma_deg must be >= 0 (0: one-hot targets), got {self.rotation_sigma_deg}")
         if self.predictor_eps not in PREDICTOR_EPS:
             raise ValueError(f"predictor_eps must be one of {PREDICTOR_EPS}, got {self.predictor_eps!r}")
+        if self.predictor_balance not in PREDICTOR_BALANCES:
+            raise ValueError(f"predictor_balance must be one of {PREDICTOR_BALANCES}, got {self.predictor_balance!r}")
         if self.selector_condition not in SELECTOR_CONDITIONS:
             raise ValueError(f"selector_condition must be one of {SELECTOR_CONDITIONS}, got {self.selector_condition!r}")
         if self.served_draws < 1:

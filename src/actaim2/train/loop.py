@@ -49,6 +49,7 @@ from actaim2.train.data import TrainingData
 from actaim2.train.distributed import DistContext, rank_slice, wrap
 from actaim2.train.elbo import selector_loss
 from actaim2.train.mode_contrast import contrast_partners, draw_partners, mode_contrast_loss
+from actaim2.train.balance import cluster_balanced_weights
 from actaim2.train.served_eps import nearest_centre_pools, neighbour_eps_pools, pick_from_pools, served_eps_pools
 
 STATE = "train_state"
@@ -306,6 +307,24 @@ class Trainer:
                   f"(median {int(np.median(held)) if held else 0} each); the others keep their true eps")
         return pools
 
+    @torch.no_grad()
+    def _draw_probabilities(self, phase: str, items: np.ndarray) -> np.ndarray | None:
+        """Each of ``items``' chance of a place in a batch: None (uniform) unless the predictor phase is
+        cluster-balanced (train/balance.py), where each trajectory's cluster is its nearest-centre cluster."""
+        if phase != "predictor" or self.config.predictor_balance == "none":
+            return None
+        trajectories = np.unique(items[:, 0])
+        self.selector.eval()
+        _, chosen = nearest_centre_pools(self.selector, self.train, trajectories, self.device)
+        weights = np.zeros(len(self.train))
+        weights[trajectories] = cluster_balanced_weights(np.array([object_of(self.train.ids[i]) for i in trajectories]),
+                                                         chosen)
+        if self.ctx.is_main:
+            print(f"cluster-balanced keyframes: trajectory weights {weights[trajectories].min():.2f} to "
+                  f"{weights[trajectories].max():.2f} (1 = as collected)")
+        probabilities = weights[items[:, 0]]
+        return probabilities / probabilities.sum()
+
     def _run_phase(self, phase: str) -> PhaseResult:
         cfg = self.config.phase(phase)
         items = self._items(phase, self.train)
@@ -320,13 +339,16 @@ class Trainer:
         wrapped = {m: wrap(m, self.ctx) for m in self._modules(phase)}
         if phase == "predictor":
             self.eps_pools = self._eps_pools(np.unique(items[:, 0]))
+        probabilities = self._draw_probabilities(phase, items)
         last_save, t0, metrics = time.monotonic(), time.monotonic(), {}
         bar = tqdm(total=total, initial=self.step, desc=f"{phase}", disable=not self.show)
         for m in self._modules(phase):
             m.train()
         while self.step < total:
             rng = np.random.default_rng([self.config.seed, self.config.phases.index(phase), self.step])
-            batch_items = items[rng.choice(len(items), size=min(cfg.batch_size, len(items)), replace=False)]
+            size = min(cfg.batch_size, len(items))
+            batch_items = items[rng.choice(len(items), size=size, replace=False) if probabilities is None
+                                else rng.choice(len(items), size=size, replace=False, p=probabilities)]
             for group in optimizer.param_groups:
                 group["lr"] = group.get("lr_scale", 1.0) * learning_rate(self.step, total, cfg.lr, cfg.warmup_fraction,
                                                                          cfg.final_lr_fraction)
