@@ -189,6 +189,12 @@ def test_neighbour_eps_balanced_is_neighbour_eps_with_cluster_balanced_keyframes
     assert dataclasses.replace(step, predictor_balance="none") == base
 
 
+def test_neighbour_eps_augmented_is_neighbour_eps_with_the_scene_augmentation():
+    base, step = load_config("neighbour_eps"), load_config("neighbour_eps_augmented")
+    assert not base.augment and step.augment
+    assert dataclasses.replace(step, augment=False) == base
+
+
 def test_a_neighbour_count_of_zero_is_refused():
     with pytest.raises(ValueError, match="neighbour_count must be >= 1"):
         TrainConfig.from_dict({"predictor_eps": "neighbour", "neighbour_count": 0})
