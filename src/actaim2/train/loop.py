@@ -347,8 +347,7 @@ class Trainer:
         while self.step < total:
             rng = np.random.default_rng([self.config.seed, self.config.phases.index(phase), self.step])
             size = min(cfg.batch_size, len(items))
-            batch_items = items[rng.choice(len(items), size=size, replace=False) if probabilities is None
-                                else rng.choice(len(items), size=size, replace=False, p=probabilities)]
+            batch_items = items[rng.choice(len(items), size=size, replace=False, p=probabilities)]
             for group in optimizer.param_groups:
                 group["lr"] = group.get("lr_scale", 1.0) * learning_rate(self.step, total, cfg.lr, cfg.warmup_fraction,
                                                                          cfg.final_lr_fraction)
