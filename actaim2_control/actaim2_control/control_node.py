@@ -88,6 +88,8 @@ PARAMETERS = {
     "via_speed_fraction": (_PLAN.via_speed_fraction, "speed at the pre-grasp via point, fraction of the line's top speed"),
     "sample_period": (_PLAN.sample_period, "s between the trajectory points sent to the controller"),
     "ik_restarts": (IKOptions().restarts, "random IK restarts after the attempt seeded from the current joints"),
+    "ik_seed": (0, "seed of the generator the random IK restarts draw from (numpy, created at start): the same goals "
+                   "from the same joint states plan the same motions, run after run"),
     "hand_half_turn": (POLICY_PLANNER.hand_half_turn, "a keypose and its half turn about the approach axis are one grasp of a "
                                              "two-finger hand: plan whichever the arm can take (INIT as given first, "
                                              "REACH and MANIPULATE as the hand already is; MANIPULATE never turns)"),
@@ -125,7 +127,7 @@ class ControlNode(Node):
             stopped_velocity=float(p["stopped_velocity"]), sample_period=options.sample_period,
         )
         self._executor = RosExecutor(self, spec, Limits.of(robot), settings, group)
-        self._runner = KeyposeRunner(self._planner, self._executor)
+        self._runner = KeyposeRunner(self._planner, self._executor, np.random.default_rng(int(p["ik_seed"])))
         self._busy = threading.Lock()
         self._keypose_pub = self.create_publisher(KeyposeMsg, "/keypose", KEYPOSE_QOS)
         self._cloud_topic, self._have_cloud, self._use_cloud = p["cloud_topic"], False, bool(p["use_cloud"])
@@ -234,7 +236,7 @@ class ControlNode(Node):
             except RuntimeError as exc:  # no /joint_states: nothing was moved
                 outcome, candidate = Outcome(False, str(exc), float("nan"), float("nan"), "joint_states"), -1
             if candidate > 0:
-                self.get_logger().info(f"keypose refused by the planner ({outcome.refused}): executing alternatives[{candidate - 1}]")
+                self.get_logger().info(f"refused by the planner: {outcome.refused}; executing alternatives[{candidate - 1}]")
             return self._finish(handle, outcome, candidate)
         finally:
             self._executor.cancel_requested = lambda: False

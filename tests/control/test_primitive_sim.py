@@ -75,7 +75,14 @@ def test_run_first_falls_back_and_moves_nothing_for_a_refused_keypose():
     near = Keypose(0, np.array([0.45, 0.0, 0.45]), down, False)
     outcome, index = runner.run_first([far, near], velocity_scaling=0.5)
     assert index == 1 and outcome.success, outcome.message
-    assert "[1.8, 0.0, 0.5]" in outcome.refused  # why the keypose asked for was not executed
+    assert outcome.refused.startswith("keypose: ") and "[1.8, 0.0, 0.5]" in outcome.refused  # why it was not executed
     assert np.linalg.norm(env.tcp_pose()[:3, 3] - near.position) <= 0.005
+
+    farther = Keypose(0, np.array([0.0, 1.9, 0.5]), down, False)
+    outcome, index = runner.run_first([far, farther, near], velocity_scaling=0.5)
+    assert index == 2 and outcome.success, outcome.message
+    keypose, fallback = outcome.refused.split("; ")  # every refused candidate, in order, with its own reason
+    assert keypose.startswith("keypose: ") and "[1.8, 0.0, 0.5]" in keypose
+    assert fallback.startswith("alternatives[0]: ") and "[0.0, 1.9, 0.5]" in fallback
     with pytest.raises(ValueError, match="no keypose"):
         runner.run_first([])

@@ -47,7 +47,7 @@ class Outcome:
     position_error: float  # m between the reached and the requested tcp position
     orientation_error: float  # rad
     reason: str = ""  # machine-readable failure reason ("" on success)
-    refused: str = ""  # executed a fallback: why the planner refused the keypose asked for (a log says it)
+    refused: str = ""  # executed a fallback: why the planner refused each candidate before it (a log says it)
 
 
 class KeyposeRunner:
@@ -66,22 +66,25 @@ class KeyposeRunner:
     def run_first(self, candidates: Sequence[Keypose], velocity_scaling: float = 1.0,
                   feedback: Feedback | None = None) -> tuple[Outcome, int]:
         """Execute the first of ``candidates`` the planner accepts (a policy's keypose, then its
-        fallbacks); (its outcome, its index). Nothing moves for a refused one. When all are
-        refused: the first one's refusal (what was asked for) and index -1."""
+        fallbacks); (its outcome, its index). Nothing moves for a refused one. An executed fallback's
+        ``refused`` names every candidate refused before it with the planner's reason, so a log can say
+        why the keypose and the earlier fallbacks were not run. When all are refused: the first one's
+        refusal (what was asked for) and index -1."""
         if not candidates:
             raise ValueError("no keypose to run")
-        start, refusal = self._start_state(), None
+        start, first_refusal, refusals = self._start_state(), None, []
         for index, keypose in enumerate(candidates):
             T_goal = pose_to_matrix(keypose.position, keypose.quat_xyzw)
             try:
                 motion = self.planner.plan(int(keypose.phase), T_goal, bool(keypose.gripper_closed),
                                            start, velocity_scaling, self.rng)
             except PlanningError as exc:
-                refusal = refusal or self._outcome(T_goal, False, str(exc), exc.reason)
+                first_refusal = first_refusal or self._outcome(T_goal, False, str(exc), exc.reason)
+                refusals.append(f"{'keypose' if index == 0 else f'alternatives[{index - 1}]'}: {exc}")
                 continue
             outcome = self._execute(motion, feedback)
-            return (replace(outcome, refused=refusal.message) if refusal else outcome), index
-        return refusal, -1
+            return replace(outcome, refused="; ".join(refusals)), index
+        return first_refusal, -1
 
     def _execute(self, motion: Motion, feedback: Feedback | None) -> Outcome:
         report = feedback or (lambda phase, progress: None)
