@@ -76,15 +76,31 @@ def test_structure_is_found(seed: int) -> None:
     assert abs(pooled(results, 2).value - 0.6) < 0.06
 
 
-def test_full_preset_measures_every_rows_mode_ssr_on_as_many_half_b_samples() -> None:
+@pytest.mark.parametrize("per_group", [None, 16])
+def test_full_preset_measures_every_rows_mode_ssr_on_as_many_half_b_samples(per_group: int | None) -> None:
     """The acceptance compares ActAIM2's 2nd mode with "the same statistic" on Data Collection's pseudo-clusters
-    (and Table 2 has VQVAE-RVT's codes): every grouped row has as many half-B samples per group as ActAIM2."""
+    (and Table 2 has VQVAE-RVT's codes): every grouped row has as many half-B samples per group as ActAIM2,
+    at the full size's 4 per group and with --per-group 16."""
     objects = catalogue_objects(("train_seen",), 1, ("storage_furniture", "faucet"))
-    tasks = plan_tasks({"actaim2": 8, "vqvae_rvt": 8, "data_collection": 0}, objects, PRESETS["full"].counts)
+    preset = PRESETS["full"] if per_group is None else PRESETS["full"].with_per_group(per_group)
+    tasks = plan_tasks({"actaim2": 8, "vqvae_rvt": 8, "data_collection": 0}, objects, preset.counts)
     half_b: dict[str, Counter] = {m: Counter() for m in ("actaim2", "vqvae_rvt", "data_collection")}
     for t in tasks:
         group, repetition = task_group(t)
         half_b[t.method][(t.obj.key, group)] += repetition % 2
     for method, counts in half_b.items():
         assert len(counts) == 8 * len(objects), method
-        assert set(counts.values()) == {2}, (method, counts)
+        assert set(counts.values()) == {(per_group or 4) // 2}, (method, counts)
+
+
+def test_more_samples_per_group_extend_a_run() -> None:
+    """--per-group N on a finished run plans its samples again (same keys, clusters and seeds) and adds only
+    repetitions, so resuming keeps every sample; fewer than 2 per group leaves a half empty and is refused."""
+    objects = catalogue_objects(("train_seen",), 1, ("storage_furniture",))
+    methods = {"actaim2": 8, "data_collection": 0}
+    base = {t.key: t for t in plan_tasks(methods, objects, PRESETS["full"].counts)}
+    more = {t.key: t for t in plan_tasks(methods, objects, PRESETS["full"].with_per_group(12).counts)}
+    assert len(more) == 3 * len(base) and all(more[k] == t and task_group(more[k]) == task_group(t) for k, t in base.items())
+    assert PRESETS["full"].with_per_group(12).name == "full, 12 per group"
+    with pytest.raises(ValueError, match="at least 2 samples per group"):
+        PRESETS["full"].with_per_group(1)

@@ -6,6 +6,7 @@ Examples:
     actaim2 evaluate --out runs/eval --checkpoint runs/cpu/policy --vqvae runs/vq/policy --cvae runs/cvae/policy \\
         --data data/ds --objects ~/partnet-mobility/148 --workers 2
     actaim2 evaluate --out runs/eval --checkpoint runs/cpu/policy --ray auto --workers 16          # a Ray cluster
+    actaim2 evaluate --out runs/eval --checkpoint runs/cpu/policy --data data/ds --per-group 16    # Mode SSR on 4x the samples
 
 Rows: ActAIM2 (--checkpoint), Goal-RVT (--goal-rvt, default <checkpoint folder>/goal_rvt, with
 the dataset's encoder), VQVAE-RVT (--vqvae), ActAIM's CVAE (--cvae), Data Collection (--data:
@@ -23,6 +24,10 @@ import shlex
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from actaim2.eval.presets import Preset
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -30,6 +35,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     size = parser.add_mutually_exclusive_group()
     size.add_argument("--smoke", action="store_true", help="3 objects, 1 sample per cluster (CI, <= 2 min)")
     size.add_argument("--quick", action="store_true", help="15 objects (one per category and split), 1 sample per cluster (<= 10 min)")
+    parser.add_argument("--per-group", type=int, metavar="N",
+                        help="samples per cluster, code and pseudo-cluster (ActAIM2, its ablations, VQVAE-RVT, Data "
+                             "Collection) instead of the size's (full: 4): narrower Mode SSR intervals; resuming a run "
+                             "with a larger N adds repetitions")
     parser.add_argument("--checkpoint", type=Path, help="ActAIM2 policy checkpoint (stem, e.g. runs/cpu/policy)")
     parser.add_argument("--goal-rvt", type=Path, help="Goal-RVT checkpoint (default: goal_rvt beside --checkpoint, if present)")
     parser.add_argument("--vqvae", type=Path, help="VQVAE-RVT policy checkpoint")
@@ -77,10 +86,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def _preset(args: argparse.Namespace):
+def _preset(args: argparse.Namespace) -> Preset:
     from actaim2.eval.presets import PRESETS
 
-    return PRESETS["smoke" if args.smoke else "quick" if args.quick else "full"]
+    preset = PRESETS["smoke" if args.smoke else "quick" if args.quick else "full"]
+    return preset if args.per_group is None else preset.with_per_group(args.per_group)
 
 
 def _render_path(perception, args: argparse.Namespace) -> str:
@@ -153,12 +163,12 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.perception.config import load_perception_config
     from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, MODE_GUIDANCE, NOISE_SCALE, check_noise_scale
 
-    preset = _preset(args)
     half_turn = POLICY_PLANNER.hand_half_turn if args.hand_half_turn is None else args.hand_half_turn
     alternatives = KEYPOSE_ALTERNATIVES if args.keypose_alternatives is None else args.keypose_alternatives
     guidance = MODE_GUIDANCE if args.mode_guidance is None else args.mode_guidance
     noise_scale = NOISE_SCALE if args.noise_scale is None else args.noise_scale
     try:
+        preset = _preset(args)
         ray_problem = ray_available() if args.ray else None
         if ray_problem:
             raise ValueError(f"--ray: {ray_problem}")

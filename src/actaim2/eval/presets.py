@@ -6,7 +6,7 @@ measured figures are in docs/evaluation.md.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from actaim2.eval.tasks import SampleCounts
 
@@ -18,6 +18,19 @@ class Preset:
     categories: tuple[str, ...]  # () = all
     counts: SampleCounts
     videos: int  # objects whose episodes are filmed (one per cluster) when --videos is not given
+
+    def with_per_group(self, n: int) -> "Preset":
+        """The same objects with ``n`` samples per cluster, code and pseudo-cluster (``--per-group``).
+
+        Mode SSR measures a group on its half-B samples only, so its interval narrows with more
+        samples per group; the rows it compares (ActAIM2, its ablations, VQVAE-RVT, Data Collection)
+        all get ``n``, keeping "the same statistic" on as many samples. Slots extend, so a run resumed
+        with a larger ``n`` keeps its samples and adds repetitions.
+        """
+        if n < 2:
+            raise ValueError(f"--per-group {n}: Mode SSR needs at least 2 samples per group (one in each half)")
+        return replace(self, name=f"{self.name}, {n} per group",
+                       counts=replace(self.counts, per_cluster=n, baseline_per_group=n))
 
 
 PRESETS = {
