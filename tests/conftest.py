@@ -6,12 +6,14 @@
 from __future__ import annotations
 
 import signal
-import threading
-from typing import Callable, Iterator
+from typing import TYPE_CHECKING, Callable, Iterator
 
 import pytest
 
-from harness import NodeProcess
+from harness import NodeProcess, Spinner
+
+if TYPE_CHECKING:
+    from rclpy.node import Node
 
 
 @pytest.fixture(scope="session")
@@ -24,18 +26,13 @@ def ros_context() -> Iterator[None]:
 
 
 @pytest.fixture
-def ros_node(ros_context, request) -> Iterator["rclpy.node.Node"]:
-    from rclpy.executors import MultiThreadedExecutor
+def ros_node(ros_context, request) -> Iterator["Node"]:
     from rclpy.node import Node
 
     node = Node(f"test_{request.node.name}".replace("[", "_").replace("]", "_").replace("-", "_")[:60])
-    executor = MultiThreadedExecutor(num_threads=2)
-    executor.add_node(node)
-    thread = threading.Thread(target=executor.spin, daemon=True)
-    thread.start()
+    spinner = Spinner(node)
     yield node
-    executor.shutdown()
-    thread.join(timeout=5)  # out of rcl before the node is destroyed (else: "exception was never retrieved")
+    spinner.stop()  # no callback left running when the node is destroyed
     node.destroy_node()
 
 

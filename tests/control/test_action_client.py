@@ -2,17 +2,15 @@
 (ros2/rclpy#1123): widened here to 0.3 s, the plain ActionClient loses it, the locked one does not."""
 from __future__ import annotations
 
-import threading
 import time
 
 import pytest
 from control_msgs.action import GripperCommand
 from rclpy.action import ActionClient, ActionServer
-from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 
 from actaim2_control.action_client import LockedActionClient
-from harness import wait_for
+from harness import Spinner, wait_for
 
 
 class SlowRegistration:
@@ -40,14 +38,9 @@ def server_and_client_node(ros_context):
         return GripperCommand.Result(reached_goal=True)
 
     ActionServer(server_node, GripperCommand, "/race_test/gripper_cmd", execute)
-    executor = MultiThreadedExecutor(num_threads=4)
-    executor.add_node(server_node)
-    executor.add_node(client_node)
-    thread = threading.Thread(target=executor.spin, daemon=True)
-    thread.start()
+    spinner = Spinner(server_node, client_node)
     yield client_node
-    executor.shutdown()
-    thread.join(timeout=5)
+    spinner.stop()
     server_node.destroy_node()
     client_node.destroy_node()
 
