@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Callable, Iterator
 
 import pytest
 
-from harness import NodeProcess, Spinner
+from harness import NodeProcess
 
 if TYPE_CHECKING:
     from rclpy.node import Node
@@ -29,10 +29,13 @@ def ros_context() -> Iterator[None]:
 def ros_node(ros_context, request) -> Iterator["Node"]:
     from rclpy.node import Node
 
+    from actaim2.ros_main import BackgroundSpinner
+
     node = Node(f"test_{request.node.name}".replace("[", "_").replace("]", "_").replace("-", "_")[:60])
-    spinner = Spinner(node)
+    spinner = BackgroundSpinner(node)
     yield node
     spinner.stop()  # no callback left running when the node is destroyed
+    spinner.executor.shutdown()
     node.destroy_node()
 
 

@@ -44,37 +44,6 @@ def matched(subscription) -> Callable[[], bool]:
     return lambda: subscription.get_publisher_count() >= 1
 
 
-class Spinner:
-    """Spins an executor in a background thread until ``stop``, which returns once no callback runs.
-
-    rclpy 7.1's ``Executor.shutdown`` neither waits for the callback under way nor lets ``spin`` finish
-    it: it destroys the guard condition that callback triggers on its way out ("cannot use Destroyable",
-    an exception in the spin thread or never retrieved). So the thread spins a single-threaded executor
-    once at a time, ``stop`` ends the loop and joins it, and only then is the executor shut down and the
-    nodes may be destroyed."""
-
-    def __init__(self, *nodes) -> None:
-        import threading
-
-        from rclpy.executors import SingleThreadedExecutor
-
-        self.executor = SingleThreadedExecutor()
-        for node in nodes:
-            self.executor.add_node(node)
-        self._running = True
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        while self._running:
-            self.executor.spin_once(timeout_sec=0.05)
-
-    def stop(self) -> None:
-        self._running = False
-        self._thread.join(timeout=10)
-        self.executor.shutdown()
-
-
 class NodeProcess:
     """A node started through `ros2 run`, its output captured in a log file."""
 

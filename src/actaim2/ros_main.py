@@ -15,8 +15,8 @@ thread's Python stack to stderr (the node's log) on :data:`STACK_DUMP_SIGNAL` (`
 sends it to a node that does not stop after SIGINT, before killing it: the log then says where it
 hung), turns a constructor's ValueError or OSError (unusable parameters, an unreadable file) into
 one ``cannot start: <why>`` line and exit code 1 instead of a traceback, and shuts down in the one
-safe order: executor, spinner thread (out of rcl before the node goes: a thread left inside it
-aborted the process at exit), node, context.
+safe order: spinning stopped (a client's spin thread joined: out of rcl, no callback running; a
+thread left inside rcl aborted the process at exit), executor, node, context.
 
 Why here and not in a ROS package: as for :mod:`actaim2.ros_params`, every node package depends
 on this library while no ROS package is a dependency of all the others. rclpy is imported inside
@@ -104,11 +104,12 @@ def spin_until(make_node: Callable[[threading.Event], Node], name: str, args: li
 
 
 def run_client(make_node: Callable[[threading.Event], N], body: Callable[[N, threading.Event], int], name: str,
-               args: list[str] | None = None, threads: int = 2, own_signals: bool = True) -> int:
-    """Return ``body(node, stop)`` for ``node = make_node(stop)``, run in the main thread while an
-    executor with ``threads`` threads spins the node in another. ``own_signals``: SIGINT and
-    SIGTERM only set ``stop`` (the body cancels what runs and ends); False keeps rclpy's handler
-    (Ctrl-C shuts the context down at once), for a client with nothing to cancel."""
+               args: list[str] | None = None, own_signals: bool = True) -> int:
+    """Return ``body(node, stop)`` for ``node = make_node(stop)``, run in the main thread while a
+    single-threaded executor spins the node in another (the waiting is the body's; the callbacks only
+    keep messages and complete futures). ``own_signals``: SIGINT and SIGTERM only set ``stop`` (the
+    body cancels what runs and ends); False keeps rclpy's handler (Ctrl-C shuts the context down at
+    once), for a client with nothing to cancel."""
     if own_signals:
         stop = _init_stoppable(args)
     else:
@@ -117,14 +118,44 @@ def run_client(make_node: Callable[[threading.Event], N], body: Callable[[N, thr
     node = _start(lambda: make_node(stop), name)
     if node is None:
         return 1
-    executor = _executor(threads)
-    executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
+    spinner = BackgroundSpinner(node)
     try:
         return body(node, stop)
     finally:
-        _close(executor, node, spinner)
+        spinner.stop()
+        _close(spinner.executor, node)
+
+
+class BackgroundSpinner:
+    """A single-threaded executor spinning ``nodes`` in a background thread, one callback at a time,
+    until :meth:`stop` (or the context's end). Once ``stop`` returns no callback is running, so the
+    executor can be shut down and the nodes destroyed: rclpy 7.1's ``Executor.shutdown`` does not wait
+    for a running callback and destroys the guard condition it triggers on its way out (a traceback
+    from the spin thread, or a task's "exception was never retrieved")."""
+
+    def __init__(self, *nodes: Node) -> None:
+        from rclpy.executors import SingleThreadedExecutor
+
+        self.executor = SingleThreadedExecutor()
+        for node in nodes:
+            self.executor.add_node(node)
+        self._done = threading.Event()
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        from rclpy.executors import ExternalShutdownException
+
+        try:
+            while not self._done.is_set() and self.executor.context.ok():
+                self.executor.spin_once(timeout_sec=SPIN_POLL)
+        except ExternalShutdownException:  # Ctrl-C under rclpy's own handler (run_client's own_signals=False)
+            pass
+
+    def stop(self) -> None:
+        """End the spinning and wait for the thread (the executor stays up: shut it down next)."""
+        self._done.set()
+        self._thread.join()
 
 
 def _init(args: list[str] | None, signal_handler_options: SignalHandlerOptions | None = None) -> None:
@@ -169,11 +200,9 @@ def _executor(threads: int) -> Executor:
     return SingleThreadedExecutor() if threads == 1 else MultiThreadedExecutor(num_threads=threads)
 
 
-def _close(executor: Executor, node: Node, spinner: threading.Thread | None = None) -> None:
+def _close(executor: Executor, node: Node) -> None:
     import rclpy
 
     executor.shutdown()
-    if spinner is not None:
-        spinner.join()
     node.destroy_node()
     rclpy.try_shutdown()

@@ -9,8 +9,9 @@ from control_msgs.action import GripperCommand
 from rclpy.action import ActionClient, ActionServer
 from rclpy.node import Node
 
+from actaim2.ros_main import BackgroundSpinner
 from actaim2_control.action_client import LockedActionClient
-from harness import Spinner, wait_for
+from harness import wait_for
 
 
 class SlowRegistration:
@@ -38,9 +39,10 @@ def server_and_client_node(ros_context):
         return GripperCommand.Result(reached_goal=True)
 
     ActionServer(server_node, GripperCommand, "/race_test/gripper_cmd", execute)
-    spinner = Spinner(server_node, client_node)
+    spinner = BackgroundSpinner(server_node, client_node)
     yield client_node
     spinner.stop()
+    spinner.executor.shutdown()
     server_node.destroy_node()
     client_node.destroy_node()
 
