@@ -91,6 +91,34 @@ def test_a_task_run_again_gives_the_same_trajectory(tmp_path):
     np.testing.assert_array_equal(a.observations["final"]["cam0"].rgb, b.observations["final"]["cam0"].rgb)
 
 
+def test_actions_per_placement_share_one_reset_and_one_o_init(tmp_path):
+    """--actions-per-placement 2: random trajectories 0 and 1 start from the same scene (one O_init,
+    two actions), trajectory 2 from another; a dataset is resumed only with the count it was made with."""
+    config = CollectConfig(out=tmp_path, objects=(OBJECT,), per_object={"random": 3}, workers=0, show_progress=False,
+                           actions_per_placement=2)
+    tasks = stage_tasks(config, "random", range(3))
+    assert tasks[0].reset_seed == tasks[1].reset_seed != tasks[2].reset_seed
+    assert len({t.seed for t in tasks}) == 3  # each its own action
+    assert all(t.reset_seed is None for t in stage_tasks(CollectConfig(out=tmp_path, objects=(OBJECT,), per_object={"random": 3}),
+                                                          "random", range(3)))
+    collector = TrajectoryCollector(config)
+    first, second, third = (decode_trajectory(dict(collector.run(t).members)) for t in tasks)
+    assert first.info["reset_seed"] == second.info["reset_seed"] == tasks[0].reset_seed
+    for cam in first.observations["init"]:
+        np.testing.assert_array_equal(first.observations["init"][cam].rgb, second.observations["init"][cam].rgb)
+        np.testing.assert_array_equal(first.observations["init"][cam].depth, second.observations["init"][cam].depth)
+    assert not np.array_equal(first.observations["init"]["cam0"].depth, third.observations["init"]["cam0"].depth)
+    assert not np.allclose(first.keyposes[1].position, second.keyposes[1].position)
+    with pytest.raises(ValueError, match="actions_per_placement"):
+        CollectConfig(out=tmp_path, objects=(OBJECT,), per_object={"random": 1}, actions_per_placement=0)
+    from actaim2.data.collect import check_resumable
+
+    with pytest.raises(ValueError, match="--actions-per-placement 2"):
+        check_resumable({"seed": 0, "robot": "panda", "actions_per_placement": 2}, CollectConfig(out=tmp_path, objects=(OBJECT,), per_object={}))
+    with pytest.raises(ValueError, match="--actions-per-placement 1"):  # collected before the option: one reset each
+        check_resumable({"seed": 0, "robot": "panda"}, config)
+
+
 def _run_until_stored(cmd: list[str], index, stored: int, sig: int) -> subprocess.Popen:
     """Start the CLI in its own process group; once ``stored`` trajectories are indexed, send ``sig``
     to the group (SIGINT: what Ctrl-C in a terminal does; SIGKILL: a power cut)."""

@@ -13,12 +13,17 @@ Stages, each resumable (a stored or skipped trajectory id is never run again):
                rounds with the new trajectories labelled, as Algorithm 1 iterates
   5. label     again, so every trajectory has a visual label
 
-One trajectory: reset the object half-open (placement jitter from the trajectory's seed),
+One trajectory: reset the object half-open (placement jitter from the trajectory's reset seed),
 observe O_init (robot hidden) and O_0, build the object cloud from O_init, sample an action
 sequence, check the arm reaches its three poses (IK), execute the four keyposes through the
 control package's planner observing O_1..O_3 in between, observe O_final (robot hidden), read
 the DoFs (privileged, for validation only). A keypose the planner refuses restarts the
 trajectory with a new sample, up to ``max_attempts`` times.
+
+With ``actions_per_placement`` N > 1, trajectories k of one sampler on one object with the same
+k // N share their reset seed (placement, randomisation draw): the same O_init then comes with
+several actions and outcomes, the multimodality the mode selector's conditional prior models,
+and the only case in which the predictor must read eps to tell the targets of one scene apart.
 
 Workers are processes or Ray actors (actaim2.parallel, the executor evaluation uses), each with
 its own simulator; the parent only writes, in task order. Every trajectory's
@@ -66,6 +71,7 @@ from actaim2.sim.randomisation import DomainRandomisation
 
 EXPLORE_SAMPLERS = ("random", "grasp")
 SAMPLER_CODES = {"random": 1, "grasp": 2, "gmm": 3}
+PLACEMENT_CODE = 7  # derive_seed's last number for a shared reset, so it differs from every task seed
 PRECHECK_IK_RESTARTS = 8
 SKIPPED_FILE = "skipped.jsonl"  # trajectories given up on (no feasible sample): not retried on resume
 TOP_UP_ROUNDS = 3  # random replacements of skipped explore trajectories (replacements can be skipped too)
@@ -99,6 +105,11 @@ class CollectConfig:
     folders: tuple[FolderObject, ...] = ()  # real PartNet-Mobility folders (actaim2.data.real_objects)
     hull_cache: Path | None = None  # their convex decompositions (None: the default cache folder)
     randomisation: DomainRandomisation | None = None  # domain randomisation of every reset (actaim2.sim.randomisation)
+    actions_per_placement: int = 1  # trajectories of one sampler sharing a reset (module docstring); 1: one reset each
+
+    def __post_init__(self) -> None:
+        if self.actions_per_placement < 1:
+            raise ValueError(f"actions_per_placement must be >= 1, got {self.actions_per_placement}")
 
 
 @dataclass(frozen=True)
@@ -112,6 +123,7 @@ class Task:
     seed: int
     gmm: GMMAdaptiveSampler | None = None
     folder: str = ""  # a real object folder (instance -1), else the catalogue's (category, instance)
+    reset_seed: int | None = None  # the placement shared with other tasks; None: every attempt draws its own
 
 
 def derive_seed(seed: int, object_id: str, *numbers: int) -> int:
@@ -194,7 +206,8 @@ class TrajectoryCollector:
 
     def _attempt(self, task: Task, sampler: Sampler, rng: np.random.Generator) -> Trajectory | str:
         env = self.env
-        info = env.reset(task.category, task.instance, seed=int(rng.integers(2**31)), dof_fraction=self.config.dof_fraction,
+        reset_seed = task.reset_seed if task.reset_seed is not None else int(rng.integers(2**31))
+        info = env.reset(task.category, task.instance, seed=reset_seed, dof_fraction=self.config.dof_fraction,
                          folder=task.folder or None)
         observations = {"init": from_sim(env.observe(with_robot=False))}
         joints = {"init": self._joints()}
@@ -331,8 +344,15 @@ def stage_tasks(config: CollectConfig, sampler: str, indices: range, gmm: dict |
         for k in (k for k in indices if k < per_object(config, sampler, split)):
             tasks.append(Task(trajectory_id(oid, sampler, k), category, instance, split, sampler, k,
                               derive_seed(config.seed, oid, SAMPLER_CODES[sampler], k), gmm[oid] if gmm is not None else None,
-                              folder))
+                              folder, shared_reset_seed(config, oid, sampler, k)))
     return tasks
+
+
+def shared_reset_seed(config: CollectConfig, object_id: str, sampler: str, index: int) -> int | None:
+    """The reset seed trajectory ``index`` shares with the others of its placement (``actions_per_placement``
+    consecutive numbers of one sampler); None when every trajectory has its own."""
+    n = config.actions_per_placement
+    return None if n == 1 else derive_seed(config.seed, object_id, SAMPLER_CODES[sampler], index // n, PLACEMENT_CODE)
 
 
 def collection_objects(config: CollectConfig) -> list[tuple[str, str, int, str, str]]:
@@ -361,7 +381,8 @@ def top_up_tasks(config: CollectConfig) -> list[Task]:
         start = per_object(config, "random", split)
         for k in range(start, start + skipped.get(oid, 0)):
             tasks.append(Task(trajectory_id(oid, "random", k), category, instance, split, "random", k,
-                              derive_seed(config.seed, oid, SAMPLER_CODES["random"], k), None, folder))
+                              derive_seed(config.seed, oid, SAMPLER_CODES["random"], k), None, folder,
+                              shared_reset_seed(config, oid, "random", k)))
     return tasks
 
 
@@ -416,6 +437,11 @@ def check_resumable(info: dict, config: CollectConfig) -> None:
         if key in info and info[key] != value:
             raise ValueError(f"{config.out} was collected with {key} {info[key]!r}, not {value!r}: "
                              f"resume it with --{key} {info[key]}, or collect into another --out")
+    shared = info.get("actions_per_placement", 1)  # absent: collected before the option, one reset each
+    if shared != config.actions_per_placement:
+        raise ValueError(f"{config.out} was collected with {shared} action(s) per placement, not "
+                         f"{config.actions_per_placement}: resume it with --actions-per-placement {shared}, "
+                         "or collect into another --out")
     randomisation = config.randomisation.to_dict() if config.randomisation is not None else None
     if info.get("domain_randomisation") != randomisation:  # absent: collected without
         raise ValueError(f"{config.out} was collected with domain randomisation {info.get('domain_randomisation')}, "
@@ -443,7 +469,8 @@ def collect(config: CollectConfig) -> dict:
     info = {"rig": perception.rig, "perception": capture_part(perception), "robot": config.robot, "seed": config.seed,
             "objects": [list(o) for o in config.objects], "folders": [[f.folder, f.split] for f in config.folders],
             "per_object": config.per_object,
-            "other_splits_share": config.other_splits_share, "dof_fraction": config.dof_fraction}
+            "other_splits_share": config.other_splits_share, "dof_fraction": config.dof_fraction,
+            "actions_per_placement": config.actions_per_placement}
     if config.randomisation is not None:  # each trajectory's draw is in its meta.json info
         info["domain_randomisation"] = config.randomisation.to_dict()
     if config.folders:  # their hulls before any worker loads them (a cached mesh costs a hash)

@@ -6,6 +6,7 @@ Examples:
     actaim2 collect --out data/ds --vgg19-weights vgg19-dcbb9e9d.pth         # E = a user's VGG-19
     actaim2 collect --out data/pm --objects ~/partnet-mobility --object-splits splits.yaml   # real folders
     actaim2 collect --out data/ds --ray auto --workers 32                        # on a Ray cluster
+    actaim2 collect --out data/ds --actions-per-placement 4                      # 4 trajectories per reset
     actaim2 collect --out data/azure --robot kinova_j2s6s200 --perception azure_kinect --domain-randomisation default
 
 Interrupt it at any time; the same command resumes where it stopped.
@@ -31,6 +32,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--gmm", type=int, default=50, help="GMM-adaptive trajectories per object")
     parser.add_argument("--other-splits-share", type=float, default=1.0,
                         help="objects outside train_seen get this share of each count, rounded up (e.g. 0.4: 50 -> 20)")
+    parser.add_argument("--actions-per-placement", type=int, default=1, metavar="N",
+                        help="trajectories of one sampler sharing a reset (placement, randomisation draw), so one O_init "
+                             "comes with several actions and outcomes (default 1: one reset each)")
     parser.add_argument("--rounds", type=int, default=1, help="GMM refits while collecting the adaptive trajectories")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (0 = in this process); Ray actors with --ray")
     parser.add_argument("--ray", metavar="ADDRESS", help="run the trajectories on Ray actors (actaim2.parallel, as actaim2 evaluate "
@@ -102,8 +106,10 @@ def main(args: argparse.Namespace) -> int:
     if not objects and not folders:
         print("actaim2 collect: no object selected", file=sys.stderr)
         return 2
-    if min(args.random, args.grasp, args.gmm) < 0 or args.workers < 0 or args.rounds < 1 or not 0 < args.other_splits_share <= 1:
-        print("actaim2 collect: counts and --workers must be >= 0, --rounds >= 1, --other-splits-share in (0, 1]", file=sys.stderr)
+    if (min(args.random, args.grasp, args.gmm) < 0 or args.workers < 0 or args.rounds < 1 or args.actions_per_placement < 1
+            or not 0 < args.other_splits_share <= 1):
+        print("actaim2 collect: counts and --workers must be >= 0, --rounds and --actions-per-placement >= 1, "
+              "--other-splits-share in (0, 1]", file=sys.stderr)
         return 2
     ray_problem = ray_available() if args.ray else None
     if ray_problem:
@@ -124,6 +130,7 @@ def main(args: argparse.Namespace) -> int:
         allow_raycast=args.allow_raycast, rounds=args.rounds,
         encoder=encoder, encoder_steps=args.encoder_steps, show_progress=not args.no_progress,
         folders=tuple(folders), hull_cache=args.hull_cache, randomisation=randomisation,
+        actions_per_placement=args.actions_per_placement,
     )
     try:
         report = collect(config)
