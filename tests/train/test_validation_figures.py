@@ -16,7 +16,7 @@ from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer
 from actaim2.data.storage import trajectory_outcome
 from actaim2.train.validation import (DRAWN_FOLLOWING_PHASES, EMBEDDINGS, action_figures, drawn_following, label_mode_ssr,
-                                     mode_chain_figures, outcome_figures, outcome_rates, predict_keyframes, swap_rates,
+                                     mode_chain_figures, outcome_figures, outcome_rates, placement_rows, predict_keyframes, swap_rates,
                                      swapped_following)
 from synthetic import PLACEMENT, make_dataset
 from test_stop_gradient import TINY
@@ -99,6 +99,11 @@ def test_mode_chain_finds_the_mode_in_eps_and_tests_clusters_where_there_are_som
         assert chain.true_spread > 0.0 and chain.drawn_spread > 0.0
     one_outcome = mode_chain_figures(trainer.selector, data, objects, ["0+"] * 24, torch.device("cpu"))
     assert one_outcome.trajectories == 0 and one_outcome.clusters is None
+
+
+def test_a_clusters_draws_are_made_on_the_objects_placements_in_turn():
+    assert placement_rows(5, 4).tolist() == [0, 1, 2, 3]  # four resets, as four evaluation samples
+    assert placement_rows(3, 4).tolist() == [0, 1, 2, 0]  # fewer trajectories: round again
 
 
 def test_label_mode_ssr_chooses_each_modes_cluster_on_half_a_and_scores_half_b():

@@ -40,8 +40,9 @@ alone (a point that does not move; both rates unchanged).
 
 The links before it, on the same objects (``mode_chain_figures``): does eps name the outcome at
 all (the outcome of each trajectory's nearest other true eps, leave-one-out, against the
-majority), and do the clusters select outcomes (eps drawn from each cluster on the object's
-O_init, labelled by the outcome of its nearest true eps; mutual information of cluster and
+majority), and do the clusters select outcomes (eps drawn from each cluster, draw j on the O_init of the
+object's j-th trajectory as every evaluation sample has its own reset (before 2026-12-06 all on
+the first one's), labelled by the outcome of its nearest true eps; mutual information of cluster and
 label with the evaluation's permutation test, ``actaim2.eval.mode_dependence``)? And how much of
 the evaluation's 2nd-mode SSR do the clusters allow: the Mode SSR (``actaim2.eval.mode_ssr``, its
 split-half choice) of those labels, as if every drawn eps were executed with success and reached
@@ -345,7 +346,7 @@ def mode_chain_figures(selector: ModeSelector, data: TrainingData, objects: Sequ
             hits.append(outcomes[rows[np.argmin(distance[i])]] == outcomes[row])
             majority.append(_is_most_frequent(outcomes[row], outcomes[np.delete(rows, i)]))
         if with_clusters:
-            condition = views[:1].expand(draws, *views.shape[1:])
+            condition = views[placement_rows(len(rows), draws)]
             groups, labels, drawn_all = [], [], []
             for cluster in range(selector.config.clusters):
                 drawn = selector.sample(condition, cluster, generator, noise_scale).eps
@@ -362,6 +363,13 @@ def mode_chain_figures(selector: ModeSelector, data: TrainingData, objects: Sequ
                             dependence(per_object) if scored else None,
                             pooled(ceiling, 2) if scored else None, pooled(shuffled, 2) if scored else None,
                             *(np.mean(spread, axis=0).tolist() if scored else (float("nan"), float("nan"))))
+
+
+def placement_rows(trajectories: int, draws: int) -> np.ndarray:
+    """Which of an object's trajectories lends its O_init to each of a cluster's ``draws`` draws: one after
+    another, round again when the object has fewer. The evaluation draws every sample on its own reset, so
+    a cluster that names one outcome on one placement and another on the next scores as it would there."""
+    return np.arange(draws) % trajectories
 
 
 def label_mode_ssr(groups: Sequence[int], labels: Sequence[str], draws: int, obj: str) -> list[ModeResult]:
