@@ -15,7 +15,8 @@ import time
 import numpy as np
 import pytest
 
-from actaim2.data.collect import SKIPPED_FILE, CollectConfig, TrajectoryCollector, collect, derive_seed, stage_tasks, top_up_tasks
+from actaim2.data.collect import (SKIPPED_FILE, CollectConfig, TrajectoryCollector, check_resumable, collect, derive_seed, stage_tasks,
+                                  top_up_tasks)
 from actaim2.data.storage import MAX_TRAJECTORY_BYTES, DatasetReader, decode_trajectory
 from actaim2.data.torch_dataset import KeyframeDataset, ModeDataset
 from actaim2.data.trajectory import OBSERVATION_NAMES
@@ -111,8 +112,6 @@ def test_actions_per_placement_share_one_reset_and_one_o_init(tmp_path):
     assert not np.allclose(first.keyposes[1].position, second.keyposes[1].position)
     with pytest.raises(ValueError, match="actions_per_placement"):
         CollectConfig(out=tmp_path, objects=(OBJECT,), per_object={"random": 1}, actions_per_placement=0)
-    from actaim2.data.collect import check_resumable
-
     with pytest.raises(ValueError, match="--actions-per-placement 2"):
         check_resumable({"seed": 0, "robot": "panda", "actions_per_placement": 2}, CollectConfig(out=tmp_path, objects=(OBJECT,), per_object={}))
     with pytest.raises(ValueError, match="--actions-per-placement 1"):  # collected before the option: one reset each
