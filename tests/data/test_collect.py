@@ -15,8 +15,8 @@ import time
 import numpy as np
 import pytest
 
-from actaim2.data.collect import (SKIPPED_FILE, CollectConfig, TrajectoryCollector, check_resumable, collect, derive_seed, stage_tasks,
-                                  top_up_tasks)
+from actaim2.data.collect import (SKIPPED_FILE, CollectConfig, TrajectoryCollector, check_resumable, collect, derive_seed,
+                                  per_object, stage_tasks, top_up_tasks)
 from actaim2.data.storage import MAX_TRAJECTORY_BYTES, DatasetReader, decode_trajectory
 from actaim2.data.torch_dataset import KeyframeDataset, ModeDataset
 from actaim2.data.trajectory import OBSERVATION_NAMES
@@ -71,6 +71,7 @@ def test_counts_per_split_and_random_replacements_of_skipped_trajectories(tmp_pa
     assert ids == ["box_000-random-00000", "box_000-random-00001"] + [f"storage_furniture_000-random-{k:05d}" for k in range(4)] + \
         ["box_000-grasp-00000", "box_000-grasp-00001"] + [f"storage_furniture_000-grasp-{k:05d}" for k in range(3)]  # held out: half, rounded up
     assert top_up_tasks(config) == []
+    assert per_object(config, "random", "train_extra") == 4  # more training instances: the full count, not the share
     given_up = [("box_000-grasp-00000", "grasp"), ("box_000-grasp-00001", "grasp"), ("storage_furniture_000-gmm-00000", "gmm")]
     (tmp_path / SKIPPED_FILE).write_text("".join(json.dumps({"id": i, "sampler": s, "reasons": ["sampler found no action"]}) + "\n"
                                                  for i, s in given_up))

@@ -48,13 +48,16 @@ def _entry(tid: str, split: str) -> EncodedTrajectory:
 
 def test_torch_datasets_hold_train_seen_unless_a_held_out_split_is_asked_for(tmp_path):
     with DatasetWriter(tmp_path, {"perception": capture_part(load_perception_config("ring5"))}) as writer:
-        for tid, split in (("a", "train_seen"), ("b", "train_unseen_instance"), ("c", "heldout_category"), ("d", "train_seen")):
+        for tid, split in (("a", "train_seen"), ("b", "train_unseen_instance"), ("c", "heldout_category"), ("d", "train_seen"),
+                           ("e", "train_extra")):
             writer.append(_entry(tid, split))
     frames = KeyframeDataset(tmp_path, success=None)
     assert [e["id"] for e in frames.entries] == ["a", "d"] and frames.splits == ("train_seen",)
     assert "splits=['train_seen'], the default" in repr(frames)
     with pytest.raises(ValueError, match=r"\['heldout_category'\] are held out .* allow_held_out=True"):
         ModeDataset(tmp_path, splits=["train_seen", "heldout_category"], success=None)
+    training = ModeDataset(tmp_path, splits=["train_seen", "train_extra"], success=None)  # both training splits, no flag
+    assert sorted(e["id"] for e in training.entries) == ["a", "d", "e"]
     held_out = ModeDataset(tmp_path, splits=["heldout_category", "train_unseen_instance"], success=None, allow_held_out=True)
     assert sorted(e["id"] for e in held_out.entries) == ["b", "c"]
 

@@ -3,16 +3,16 @@ from __future__ import annotations
 
 import pytest
 
-from actaim2.data.splits import TRAIN, UNSEEN_CATEGORY, UNSEEN_INSTANCE, check_no_leak, split_of
+from actaim2.data.splits import EXTRA_TRAIN, TRAIN, UNSEEN_CATEGORY, UNSEEN_INSTANCE, check_no_leak, split_of
 from actaim2.sim.objects.catalog import HELDOUT_CATEGORIES, TRAIN_CATEGORIES, object_id, split_instances
 
 
 def test_every_catalogued_object_has_exactly_one_split():
-    for split in (TRAIN, UNSEEN_INSTANCE, UNSEEN_CATEGORY):
+    for split in (TRAIN, UNSEEN_INSTANCE, UNSEEN_CATEGORY, EXTRA_TRAIN):
         for category, instance in split_instances(split):
             assert split_of(category, instance) == split
     assert {c for c, _ in split_instances(UNSEEN_CATEGORY)} == set(HELDOUT_CATEGORIES)
-    assert {c for c, _ in split_instances(TRAIN)} == set(TRAIN_CATEGORIES)
+    assert {c for c, _ in split_instances(TRAIN)} == {c for c, _ in split_instances(EXTRA_TRAIN)} == set(TRAIN_CATEGORIES)
     with pytest.raises(ValueError):
         split_of("storage_furniture", 999)
 

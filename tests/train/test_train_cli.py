@@ -39,12 +39,12 @@ def _pictures(shift: float) -> dict[str, CameraImage]:
     return out
 
 
-def _trajectory(i: int, pictures: dict) -> Trajectory:
+def _trajectory(i: int, pictures: dict, instance: int = 0, split: str = "train_seen") -> Trajectory:
     side = 1.0 if i % 2 else -1.0
     action = ActionSequence(p1=TARGET + [-0.2, 0.1 * side, 0.1], p2=TARGET + [-0.3, 0.1 * side, 0.1], R0=np.eye(3), start_distance=0.1)
     return Trajectory(
-        id=f"box-random-{i:05d}", object_id="storage_furniture_000", category="storage_furniture", instance=0,
-        split="train_seen", sampler="random", seed=i, keyposes=action.keyposes(),
+        id=f"box-random-{i:05d}", object_id=f"storage_furniture_{instance:03d}", category="storage_furniture", instance=instance,
+        split=split, sampler="random", seed=i, keyposes=action.keyposes(),
         observations={name: pictures[0.0] for name in OBSERVATION_NAMES} | {"final": pictures[0.1 * side]},
         robot_joints={name: {"panda_joint1": 0.0} for name in OBSERVATION_NAMES},
         object_state=ObjectState(["door"], np.array([0.0]), np.array([1.0]), np.array([0.0]), np.array([0.5])),
@@ -60,6 +60,9 @@ def dataset(tmp_path_factory):
     with DatasetWriter(root, {"perception": capture_part(load_perception_config("ring5")), "robot": "panda"}) as writer:
         for i in range(12):
             ids.append(writer.append(encode_trajectory(_trajectory(i, pictures)))["id"])
+        # Training takes the extra training instances too, never an evaluation split's.
+        ids.append(writer.append(encode_trajectory(_trajectory(12, pictures, 16, "train_extra")))["id"])
+        ids.append(writer.append(encode_trajectory(_trajectory(13, pictures, 8, "train_unseen_instance")))["id"])
     write_labels(root, [{"id": t, "score": 1.0, "change": 1.0, "success": i != 5} for i, t in enumerate(ids)])  # one failure
     torch.manual_seed(0)
     ImageEncoder.autoencoder().save(root / ENCODER_FILE)  # the encoder E said to have made the synthetic task embeddings
@@ -87,7 +90,9 @@ def test_train_command_runs_all_phases_and_writes_loadable_checkpoints(dataset, 
     args = ["train", "--data", str(dataset), "--out", str(out), "--config", _config(tmp_path), "--no-progress"]
     assert cli_main(args) == 0
     caches = list((dataset / "cache").iterdir())
-    assert len(caches) == 1 and len(json.loads((caches[0] / "done.json").read_text())["ids"]) == 11  # successes only
+    cached = json.loads((caches[0] / "done.json").read_text())["ids"]
+    assert len(caches) == 1 and len(cached) == 12  # the successes of train_seen and train_extra
+    assert "box-random-00012" in cached and "box-random-00013" not in cached
     record = perception_record(load_perception_config("ring5"))
     policy = load_policy(out / "policy", record)
     assert policy.meta["lineage"]["phases_done"] == ["selector", "predictor", "joint"]

@@ -55,7 +55,7 @@ from actaim2.data.labelling import EMBEDDINGS_FILE, ENCODER_FILE, fit_default_en
 from actaim2.data.object_cloud import CloudConfig, object_cloud
 from actaim2.data.random_sampler import RandomSampler, SamplingConfig
 from actaim2.data.real_objects import FolderObject
-from actaim2.data.splits import TRAIN, check_no_leak, split_of
+from actaim2.data.splits import TRAIN, TRAINING_SPLITS, check_no_leak, split_of
 from actaim2.data.stats import RUNS_FILE
 from actaim2.data.storage import (DatasetReader, DatasetWriter, EncodedTrajectory, encode_trajectory, object_of,
                                   trajectory_id)
@@ -84,7 +84,7 @@ class CollectConfig:
     out: Path
     objects: tuple[tuple[str, int], ...]  # catalogue (category, instance) pairs
     per_object: dict[str, int]  # sampler -> trajectories per train_seen object
-    other_splits_share: float = 1.0  # objects outside train_seen get ceil(share x per_object) of each sampler
+    other_splits_share: float = 1.0  # objects outside the training splits get ceil(share x per_object) of each sampler
     workers: int = 2  # processes; 0 runs in this process (debugging, tests); Ray actors with ray_address
     ray_address: str | None = None  # run the trajectories on a Ray cluster (actaim2.parallel): auto, ray://host:port, local
     seed: int = 0
@@ -333,7 +333,7 @@ def run_tasks(config: CollectConfig, writer: DatasetWriter, tasks: list[Task], s
 def stage_tasks(config: CollectConfig, sampler: str, indices: range, gmm: dict | None = None) -> list[Task]:
     """The tasks of one sampler on every object: trajectory numbers ``indices``, seeds derived.
 
-    Objects outside train_seen take the numbers below their share (``other_splits_share``) of
+    Objects outside the training splits (``TRAINING_SPLITS``) take the numbers below their share (``other_splits_share``) of
     the sampler's count. With ``gmm`` (object id -> fitted GMMAdaptiveSampler) objects without
     a sampler are left out.
     """
@@ -389,7 +389,7 @@ def top_up_tasks(config: CollectConfig) -> list[Task]:
 def per_object(config: CollectConfig, sampler: str, split: str) -> int:
     """Trajectories of ``sampler`` on one object of ``split``."""
     n = config.per_object.get(sampler, 0)
-    return n if split == TRAIN else int(np.ceil(config.other_splits_share * n - 1e-9))
+    return n if split in TRAINING_SPLITS else int(np.ceil(config.other_splits_share * n - 1e-9))
 
 
 def _label(config: CollectConfig) -> dict:

@@ -7,6 +7,7 @@ Examples:
     actaim2 collect --out data/pm --objects ~/partnet-mobility --object-splits splits.yaml   # real folders
     actaim2 collect --out data/ds --ray auto --workers 32                        # on a Ray cluster
     actaim2 collect --out data/ds --actions-per-placement 4                      # 4 trajectories per reset
+    actaim2 collect --out data/ds --splits train_seen,train_extra                # twice the training objects
     actaim2 collect --out data/azure --robot kinova_j2s6s200 --perception azure_kinect --domain-randomisation default
 
 Interrupt it at any time; the same command resumes where it stopped.
@@ -31,7 +32,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--grasp", type=int, default=50, help="heuristic-grasp trajectories per object")
     parser.add_argument("--gmm", type=int, default=50, help="GMM-adaptive trajectories per object")
     parser.add_argument("--other-splits-share", type=float, default=1.0,
-                        help="objects outside train_seen get this share of each count, rounded up (e.g. 0.4: 50 -> 20)")
+                        help="objects outside the training splits (train_seen, train_extra) get this share of each count, "
+                             "rounded up (e.g. 0.4: 50 -> 20)")
     parser.add_argument("--actions-per-placement", type=int, default=1, metavar="N",
                         help="trajectories of one sampler sharing a reset (placement, randomisation draw), so one O_init "
                              "comes with several actions and outcomes (default 1: one reset each)")

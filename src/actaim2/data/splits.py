@@ -4,7 +4,10 @@ The catalogue (``actaim2.sim.objects.catalog.SPLITS``) fixes, as in the paper, t
 categories with seen instances (``train_seen``) and unseen instances (``train_unseen_instance``)
 and held-out categories (``heldout_category``). Every trajectory carries its object's split, so
 no instance is ever on two sides; :func:`check_no_leak` verifies a stored index.
-The training split also trains the default encoder and calibrates the success threshold.
+The training split also trains the default encoder, calibrates the success threshold and is the
+evaluation's "seen objects". ``train_extra`` holds more instances of the training categories that
+training uses when a dataset has them (:data:`TRAINING_SPLITS`) and no evaluation does: more
+objects to learn from without changing the evaluation set.
 """
 from __future__ import annotations
 
@@ -12,7 +15,9 @@ from actaim2.sim.objects.catalog import SPLITS
 
 TRAIN = "train_seen"
 UNSEEN_INSTANCE = "train_unseen_instance"
+EXTRA_TRAIN = "train_extra"
 UNSEEN_CATEGORY = "heldout_category"
+TRAINING_SPLITS = (TRAIN, EXTRA_TRAIN)  # what the models train on; only TRAIN calibrates and is evaluated
 
 
 def split_of(category: str, instance: int) -> str:

@@ -28,7 +28,7 @@ from torch.utils.data import Dataset
 
 from actaim2.data.labelling import EMBEDDINGS_FILE
 from actaim2.data.object_cloud import back_project
-from actaim2.data.splits import TRAIN
+from actaim2.data.splits import TRAIN, TRAINING_SPLITS
 from actaim2.data.storage import DatasetReader
 from actaim2.data.trajectory import PHASES, Observation
 from actaim2.keypose import Keypose
@@ -56,13 +56,14 @@ def observation_tensors(obs: Observation) -> dict[str, torch.Tensor]:
 
 
 class _StoredDataset(Dataset):
-    """``splits`` defaults to the training split alone; any other needs ``allow_held_out=True``."""
+    """``splits`` defaults to the training split alone; a split outside :data:`TRAINING_SPLITS` needs
+    ``allow_held_out=True``."""
 
     def __init__(self, root: str | Path, splits: Sequence[str] = DEFAULT_SPLITS, samplers: list[str] | None = None,
                  success: str | None = "visual", perception=None, allow_held_out: bool = False):
-        held_out = sorted(set(splits) - {TRAIN})
+        held_out = sorted(set(splits) - set(TRAINING_SPLITS))
         if held_out and not allow_held_out:
-            raise ValueError(f"split(s) {held_out} are held out from training ({TRAIN} is the training split): "
+            raise ValueError(f"split(s) {held_out} are held out from training (the training splits are {list(TRAINING_SPLITS)}): "
                              f"pass allow_held_out=True to load them (evaluation, analysis)")
         self.reader = DatasetReader(root)
         if perception is not None:  # views recomputed: the pictures must be what this perception expects

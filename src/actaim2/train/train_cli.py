@@ -47,7 +47,7 @@ def main(args: argparse.Namespace) -> int:
     import torch.distributed as dist
 
     from actaim2.data.labelling import dataset_encoder, embeddings_encoder_digest
-    from actaim2.data.splits import TRAIN
+    from actaim2.data.splits import TRAINING_SPLITS
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.perception.config import load_perception_config
     from actaim2.train.checkpoint import perception_record
@@ -73,11 +73,11 @@ def main(args: argparse.Namespace) -> int:
     perception_config = load_perception_config(args.perception)
     record = perception_record(perception_config)
     if ctx.is_main:  # one rank renders the cache (the torch datasets check the dataset's capture fields), the others wait
-        ensure_cache(args.data, perception_config, [TRAIN], not args.no_progress)
+        ensure_cache(args.data, perception_config, list(TRAINING_SPLITS), not args.no_progress)
     if ctx.distributed:
         dist.barrier()
     placement = CubePlacement.of(perception_config)
-    data = open_cache(args.data, perception_config, [TRAIN])
+    data = open_cache(args.data, perception_config, list(TRAINING_SPLITS))
     train_rows, val_rows = holdout_split(data.ids, config.validation_fraction, config.seed)
     trainer = Trainer(config, data.subset(train_rows), data.subset(val_rows), placement, record, dataset_digest(args.data),
                       args.out, ctx, args.init_from, show_progress=not args.no_progress)

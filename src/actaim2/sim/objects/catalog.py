@@ -2,6 +2,9 @@
 
 Categories follow the paper: six training categories (seen instances 0-7, unseen instances
 8-15) and three held-out categories (instances 0-7), plus the real robot's three-drawer shelf.
+Instances 16-23 of the training categories (``train_extra``) are more training objects that no
+evaluation uses: drawn after the unseen instances, so the near-duplicate rule keeps them apart
+from those too, and adding them changed no earlier instance.
 An instance is generated from a seed derived from (category, instance), so every process
 builds the same object; the generated folder is cached on disk in PartNet-Mobility layout.
 
@@ -40,6 +43,7 @@ INSTANCES_PER_SPLIT = 8
 SPLITS: dict[str, dict[str, range]] = {
     "train_seen": {c: range(0, INSTANCES_PER_SPLIT) for c in TRAIN_CATEGORIES},
     "train_unseen_instance": {c: range(INSTANCES_PER_SPLIT, 2 * INSTANCES_PER_SPLIT) for c in TRAIN_CATEGORIES},
+    "train_extra": {c: range(2 * INSTANCES_PER_SPLIT, 3 * INSTANCES_PER_SPLIT) for c in TRAIN_CATEGORIES},
     "heldout_category": {c: range(0, INSTANCES_PER_SPLIT) for c in HELDOUT_CATEGORIES},
     "real_robot": {c: range(0, 1) for c in REAL_ROBOT_OBJECTS},
 }
