@@ -83,7 +83,7 @@ log = logging.getLogger(__name__)
 class CollectConfig:
     out: Path
     objects: tuple[tuple[str, int], ...]  # catalogue (category, instance) pairs
-    per_object: dict[str, int]  # sampler -> trajectories per train_seen object
+    per_object: dict[str, int]  # sampler -> trajectories per object of a training split
     other_splits_share: float = 1.0  # objects outside the training splits get ceil(share x per_object) of each sampler
     workers: int = 2  # processes; 0 runs in this process (debugging, tests); Ray actors with ray_address
     ray_address: str | None = None  # run the trajectories on a Ray cluster (actaim2.parallel): auto, ray://host:port, local
@@ -333,9 +333,9 @@ def run_tasks(config: CollectConfig, writer: DatasetWriter, tasks: list[Task], s
 def stage_tasks(config: CollectConfig, sampler: str, indices: range, gmm: dict | None = None) -> list[Task]:
     """The tasks of one sampler on every object: trajectory numbers ``indices``, seeds derived.
 
-    Objects outside the training splits (``TRAINING_SPLITS``) take the numbers below their share (``other_splits_share``) of
-    the sampler's count. With ``gmm`` (object id -> fitted GMMAdaptiveSampler) objects without
-    a sampler are left out.
+    Objects outside the training splits (``TRAINING_SPLITS``) take the numbers below their share
+    (``other_splits_share``) of the sampler's count. With ``gmm`` (object id -> fitted
+    GMMAdaptiveSampler) objects without a sampler are left out.
     """
     tasks = []
     for oid, category, instance, split, folder in collection_objects(config):
