@@ -46,7 +46,7 @@ def nodes(tiny_checkpoint, tmp_path_factory):
         "policy_node": start_policy(logs, "policy_node", {**base, "keypose_alternatives": 2}),
         "split": start_policy(logs, "split", {**base, "checkpoint": str(split / "policy"), "views_topic": "/split/views",
                                               "predictor_views_topic": "/split/views_with_robot", "mode_guidance": 2.0,
-                                              "noise_scale": 0.0}),
+                                              "noise_scale": 1.0}),
         "missing": start_policy(logs, "missing", {**base, "checkpoint": "/no/such/policy"}),
         "mismatch": start_policy(logs, "mismatch", {**base, "perception_config": "ring5"}),
     }
@@ -122,6 +122,8 @@ def test_services_answer_from_the_latest_views_stamped_with_them(ros_node, nodes
     first, again, chosen = client.sample_mode(seed=7), client.sample_mode(seed=7), client.sample_mode(cluster=2, seed=7)
     assert first.success and seconds(first.observation_stamp) == 5.0 and len(first.embedding) == 20
     assert list(first.embedding) == list(again.embedding) and chosen.cluster == 2 and 0 <= first.cluster < 4
+    # noise_scale 0 by default: one eps per cluster and views whatever the seed
+    assert list(client.sample_mode(cluster=2, seed=8).embedding) == list(chosen.embedding)
     assert np.isclose(sum(first.cluster_probabilities), 1.0, atol=1e-5)
     assert str(tiny_checkpoint.stem) in first.message  # what is served, said in every answer
     # The mode in use goes out on /interaction_mode, stamped with its views.
@@ -213,11 +215,12 @@ def test_selector_and_predictor_each_get_views_with_their_robot_filter_setting(r
     kp = answer.keypose.pose.position
     assert np.allclose([kp.x, kp.y, kp.z], guided.keypose.position, atol=1e-5)
     assert np.isclose(answer.confidence, guided.confidence, rtol=1e-4) and not np.isclose(guided.confidence, plain.confidence)
-    # noise_scale 0.0: one eps per cluster and views whatever the seed, the library's noise-free draw
+    # noise_scale 1.0: the seed draws the library's sample of the trained distribution, not the noise-free eps
     first, second = (np.asarray(client.sample_mode(cluster=2, seed=s).embedding) for s in (1, 2))
-    noise_free = library.sample_mode(Views(0, views[0].astype(np.float32)), 2, 1, noise_scale=0.0).eps
-    assert np.array_equal(first, second) and np.allclose(first, noise_free, atol=1e-5)
-    assert not np.allclose(library.sample_mode(Views(0, views[0].astype(np.float32)), 2, 1).eps, noise_free, atol=1e-3)
+    selector_views = Views(0, views[0].astype(np.float32))
+    drawn, noise_free = (library.sample_mode(selector_views, 2, 1, noise_scale=s).eps for s in (1.0, 0.0))
+    assert np.allclose(first, drawn, atol=1e-5) and not np.allclose(first, second, atol=1e-3)
+    assert not np.allclose(drawn, noise_free, atol=1e-3)
     # Robot-hidden views on the predictor's topic are not what it was trained on.
     client.publish(views[0], config, stamp=22.0, topic="/split/views_with_robot")
     assert wait_for(lambda: "were refused" in client.predict_keypose(np.zeros(20)).message, 20.0)

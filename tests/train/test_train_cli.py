@@ -133,12 +133,12 @@ def test_train_command_runs_all_phases_and_writes_loadable_checkpoints(dataset, 
     assert torch.get_num_threads() == 2  # the folder's one_torch_thread fixture restores it
     assert (shipped / "validation.md").read_text() == text and not (shipped / "curves.png").exists()
     assert cli_main(["validate", str(shipped), "--data", str(dataset), "--threads", "-1"]) == 2
-    # The selector's draws at another noise scale, recorded in both reports.
-    assert report["noise_scale"] == 1.0
-    noise_free = tmp_path / "noise_free"
-    assert cli_main(["validate", str(noise_free), "--checkpoint", str(out / "policy"), "--data", str(dataset),
-                     "--split", "train_seen", "--no-progress", "--noise-scale", "0"]) == 0
-    assert json.loads((noise_free / "validation.json").read_text())["noise_scale"] == 0.0
+    # The selector's draws at another noise scale than policy_node's (0), recorded in both reports.
+    assert report["noise_scale"] == 0.0
+    trained = tmp_path / "trained_spread"
+    assert cli_main(["validate", str(trained), "--checkpoint", str(out / "policy"), "--data", str(dataset),
+                     "--split", "train_seen", "--no-progress", "--noise-scale", "1"]) == 0
+    assert json.loads((trained / "validation.json").read_text())["noise_scale"] == 1.0
     assert cli_main(["validate", str(shipped), "--data", str(dataset), "--noise-scale", "-1"]) == 2
 
 

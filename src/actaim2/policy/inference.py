@@ -53,8 +53,10 @@ KEYPOSE_ALTERNATIVES = 4
 # (docs/evaluation.md, "Mode guidance").
 MODE_GUIDANCE = 0.0
 # Spread of the selector's latent draws /sample_mode uses by default (policy_node, the evaluation;
-# ModeSelector.sample's noise_scale): 1 samples the trained distribution.
-NOISE_SCALE = 1.0
+# ModeSelector.sample's noise_scale): 0 serves each cluster's noise-free eps, as the committed ring5
+# checkpoint's chain was trained to be served and evaluated (docs/evaluation.md, "Twice the training
+# instances"); 1 samples the trained distribution.
+NOISE_SCALE = 0.0
 # Fallback rotations are this far apart (up to the hand's half turn): closer ones meet the same obstacles.
 ALTERNATIVE_SEPARATION_DEG = 30.0
 
