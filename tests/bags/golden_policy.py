@@ -40,6 +40,7 @@ CHECKPOINT = GOLDEN / "policy_azure_kinect"
 BAG = REPO / "bags" / "sim_azure_kinect_pull"
 CLUSTER = 1
 SEED = 7
+NOISE_SCALE = 1.0  # the azure_kinect rig's serving spread (policy_node_azure.yaml); the answers were recorded at it
 PHASES = (0, 1, 2, 3)
 EMBEDDING_TOLERANCE = 0.002
 CELL = 1.2 / 128  # m: the azure_kinect cube side over its view resolution
@@ -55,7 +56,7 @@ def gripper_closed(phase: int) -> bool:
 
 def answers(model, views) -> dict[str, np.ndarray]:
     """The services' answers, in-process: ``model`` a PolicyModel, ``views`` a policy Views."""
-    sample = model.sample_mode(views, CLUSTER, SEED)
+    sample = model.sample_mode(views, CLUSTER, SEED, NOISE_SCALE)
     rows = [model.predict_keypose(views, sample.eps, phase, gripper_closed(phase)) for phase in PHASES]
     return {"stamp": np.int64(views.stamp_ns), "cluster": np.int64(sample.cluster), "embedding": sample.eps,
             "position": np.stack([r.keypose.position for r in rows]), "quat_xyzw": np.stack([r.keypose.quat_xyzw for r in rows]),

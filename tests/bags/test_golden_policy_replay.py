@@ -59,7 +59,8 @@ def test_replay_into_fusion_and_policy_node_matches_the_golden_answers(ros_node,
     sample = ros_node.create_client(SampleMode, "/sample_mode")
     predict = ros_node.create_client(PredictKeypose, "/predict_keypose")
     policy = start_node("actaim2_policy", "policy_node", {"checkpoint": str(golden_policy.CHECKPOINT),
-                                                         "perception_config": golden.PERCEPTION, "torch_threads": 1})
+                                                         "perception_config": golden.PERCEPTION, "torch_threads": 1,
+                                                         "noise_scale": golden_policy.NOISE_SCALE})
     fusion = start_node("actaim2_perception", "fusion_node", {"robot": golden.ROBOT, "perception_config": golden.PERCEPTION,
                                                               "joint_state_wait": 1.0})  # as test_golden_replay.py
     # start-up (torch import, checkpoint, warm-up) beside the fusion node can take minutes on a loaded

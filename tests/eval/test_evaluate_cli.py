@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from actaim2.eval.methods import PSEUDO_GROUPING
-from actaim2.policy.inference import KEYPOSE_ALTERNATIVES
+from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, NOISE_SCALE
 
 from tiny_checkpoint import CLUSTERS, make_checkpoint, make_encoder
 
@@ -102,7 +102,8 @@ def test_other_checkpoint_refused(checkpoints, tmp_path) -> None:
     out.mkdir()
     (out / "run.json").write_text(json.dumps({"eval_set_version": 1, "robot": "panda", "rig": "ring5",
                                               "hand_half_turn": True, "pseudo_grouping": PSEUDO_GROUPING,
-                                              "keypose_alternatives": KEYPOSE_ALTERNATIVES, "methods": {"actaim2": "0" * 64}}))
+                                              "keypose_alternatives": KEYPOSE_ALTERNATIVES, "noise_scale": NOISE_SCALE,
+                                              "methods": {"actaim2": "0" * 64}}))
     result = subprocess.run(evaluate("--smoke", "--out", out, "--checkpoint", checkpoints["cgmvae"], "--methods", "actaim2"),
                             capture_output=True, text=True, timeout=300)
     assert result.returncode == 2 and "actaim2 results made with " + "0" * 64 in result.stderr
