@@ -24,6 +24,7 @@ and standing on the floor.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import logging
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,7 +43,17 @@ from .physics_table import effective_density
 from .sizing import DEFAULT_FRONT_DISTANCE, fit_object
 
 LOG = logging.getLogger("actaim2.sim.objects")
-OBJECT_GROUP = (1 << 31, 0x0B7EC7)  # collision groups 2 and 3 of real objects' links: no collision among them
+# A PhysX shape's collision groups are four 32-bit words; SAPIEN's filter shader reads them so:
+#   word 0: the shape's own group bits; word 1: the groups it collides with (pairs collide when
+#     a.w0 & b.w1 or b.w0 & a.w1 is non-zero; everything here keeps SAPIEN's default 1, 1);
+#   word 2: ignore bits: two shapes sharing a bit here are ignored when their word-3 low 16 bits match
+#     (SAPIEN's SRDF loader gives each of a robot's ignored link pairs one of bits 0-30);
+#   word 3: top 16 bits a "scene" number (different numbers never collide: keep them 0), low 16
+#     bits an id that word 2's ignore bits must match.
+# A real object's links get word-2 bit 31 (no robot uses it) and a word-3 id of their own, so
+# they skip each other and collide with the robot, the ground and every other body.
+OBJECT_IGNORE_BIT = 1 << 31
+_object_ids = itertools.cycle(range(1, 1 << 16))  # word-3 ids: one per loaded real object
 OBJECT_DENSITY = 500.0  # kg/m^3, wood-like
 OBJECT_FRICTION = 1.0  # static and dynamic, on every object surface
 
@@ -149,9 +160,11 @@ def _collisions_from_hulls(builder, info: ObjectFolder, hulls: HullCache, scale:
     (module docstring), give each link its material's density and keep the links from
     colliding with each other; returns the number of convex shapes."""
     total, missing, checked = 0, [], {}
+    object_id = next(_object_ids)
     for lb in builder.link_builders:
         density = effective_density(info.category, info.semantics.get(lb.name, ""))
-        lb.collision_groups = [lb.collision_groups[0], lb.collision_groups[1], lb.collision_groups[2] | OBJECT_GROUP[0], OBJECT_GROUP[1]]
+        w0, w1, w2, _ = lb.collision_groups
+        lb.collision_groups = [w0, w1, w2 | OBJECT_IGNORE_BIT, object_id]
         swapped = []
         for record in lb.collision_records:
             record.density = density
