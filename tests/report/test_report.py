@@ -27,16 +27,20 @@ def _evaluation_folder(folder: Path, monkeypatch: pytest.MonkeyPatch) -> None:
         for group in range(4):
             for repetition in range(2):
                 success = (group + repetition) % 3 == 0
-                samples.append({"key": f"actaim2|{obj}|{8 * repetition + group}", "method": "actaim2",
-                                "split": "train_seen", "category": category, "object": obj, "group": group,
-                                "repetition": repetition, "success": success,
+                samples.append({"key": f"actaim2|{obj}|{8 * repetition + group}",
+                                "method": "actaim2", "split": "train_seen", "category": category,
+                                "object": obj, "group": group, "repetition": repetition,
+                                "success": success,
                                 "mode": ["joint_0", 1 if group % 2 else -1] if success else None,
                                 "phases_executed": 4, "note": "", "candidate": [0, 0, 0, 0]})
     (folder / "results.jsonl").write_text("".join(json.dumps(s) + "\n" for s in samples))
-    (folder / "run.json").write_text(json.dumps({"eval_set_version": 1, "methods": {"actaim2": SHA}}))
-    monkeypatch.setattr(sys, "argv", ["actaim2", "evaluate", "--out", str(folder), "--workers", "2"])
+    run = {"eval_set_version": 1, "methods": {"actaim2": SHA}}
+    (folder / "run.json").write_text(json.dumps(run))
+    argv = ["actaim2", "evaluate", "--out", str(folder), "--workers", "2"]
+    monkeypatch.setattr(sys, "argv", argv)
     args = argparse.Namespace(workers=2, ray=None, robot="panda", data=None)
-    described = {"actaim2": {"path": "runs/x/policy", "weights_sha256": SHA, "dataset_digest": "d" * 16,
+    described = {"actaim2": {"path": "runs/x/policy", "weights_sha256": SHA,
+                             "dataset_digest": "d" * 16,
                              "perception_digest": "p" * 16, "predictor_inputs": ["rgb", "xyz"],
                              "predictor_view": "all"}}
     header = _header(args, "full", described, "sapien", 2, 16, 16, 0, 42.0)
@@ -56,8 +60,8 @@ def test_header_fields_round_trip(tmp_path: Path, monkeypatch: pytest.MonkeyPatc
     assert fields["checkpoints"]["actaim2"]["weights_sha256"] == SHA
 
 
-def test_check_fails_on_an_edited_table_and_a_missing_record(tmp_path: Path,
-                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+def test_check_fails_on_an_edited_table_and_a_missing_record(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     _evaluation_folder(tmp_path / "run", monkeypatch)
     repo = tmp_path / "repo"
     out = record_from_evaluation(tmp_path / "run", repo, "tiny", machine="test machine", cores=3)

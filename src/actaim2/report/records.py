@@ -30,9 +30,11 @@ SAMPLES_FILE = "results.jsonl.gz"
 MAX_BYTES = 2 * 1024 * 1024  # a record's files together stay under this
 
 _COMMAND = re.compile(r"^Command: `(?P<command>.*)`$")
-_RUN = re.compile(r"^- this run: (?P<seconds>\d+) s on (?P<workers>\d+) worker\(s\)(?: \(Ray [^)]*\))?, "
-                  r"load average (?P<load>[\d.]+), render path (?P<render>\S+), robot (?P<robot>\S+)$")
-_METHOD = re.compile(r"^- (?P<method>\w+): checkpoint `(?P<path>[^`]*)`, weights sha256 `(?P<sha>\w+)`, "
+_RUN = re.compile(r"^- this run: (?P<seconds>\d+) s on (?P<workers>\d+) worker\(s\)"
+                  r"(?: \(Ray [^)]*\))?, load average (?P<load>[\d.]+), "
+                  r"render path (?P<render>\S+), robot (?P<robot>\S+)$")
+_METHOD = re.compile(r"^- (?P<method>\w+): checkpoint `(?P<path>[^`]*)`, "
+                     r"weights sha256 `(?P<sha>\w+)`, "
                      r"dataset (?P<dataset>\S+), views (?P<views>\S+), ")
 _DATASET = re.compile(r"^- dataset `(?P<path>[^`]*)` digest (?P<digest>\S+)$")
 
@@ -49,7 +51,7 @@ class Record:
 
     @property
     def label(self) -> str:
-        """Short name of what was evaluated: the method's title and its weights' first 8 hex digits."""
+        """What was evaluated: each method's title and its weights' first 8 hex digits."""
         from actaim2.eval.methods import METHODS
 
         return ", ".join(f"{METHODS[m].title} {c['weights_sha256'][:8]}"

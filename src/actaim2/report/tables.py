@@ -23,8 +23,8 @@ def _samples(records: Sequence[Record]) -> list[dict]:
     for record in records:
         for pair in {(s["method"], s["split"]) for s in record.samples}:
             if pair in seen:
-                raise RecordError(f"records {seen[pair]} and {record.name} both hold {pair[0]} on {pair[1]}: "
-                                  "a table pools its records, so they must not overlap")
+                raise RecordError(f"records {seen[pair]} and {record.name} both hold {pair[0]} "
+                                  f"on {pair[1]}: a table pools its records, so none may overlap")
             seen[pair] = record.name
         samples += record.samples
     return samples
@@ -45,15 +45,16 @@ def results_table(records: Sequence[Record]) -> list[str]:
     splits, methods = _splits(samples), _methods(samples)
     ssr, modes = et.ssr_cells(samples), et.mode_cells(et.repeated_groups(samples), 2)
     label = {m: next(r.label for r in records if m in r.meta["checkpoints"]) for m in methods}
-    lines = ["| AVG %, 95 % Wilson interval | " + " | ".join(f"{SPLIT_TITLES[s]} | the paper" for s in splits)
-             + " |", "|---" * (2 * len(splits) + 1) + "|"]
+    columns = " | ".join(f"{SPLIT_TITLES[s]} | the paper" for s in splits)
+    lines = [f"| AVG %, 95 % Wilson interval | {columns} |", "|---" * (2 * len(splits) + 1) + "|"]
 
     def paper(values: tuple[float, ...] | None, split: str) -> str:
         return f"{values[PAPER_COLUMN[split]]:.1f}" if values else "-"
 
     for m in methods:
         lines.append(f"| {label[m]}, SSR | " + " | ".join(
-            f"{ssr[m, s, et.AVG].cell() if (m, s, et.AVG) in ssr else '-'} | {paper(et.PAPER_SSR.get(m), s)}"
+            f"{ssr[m, s, et.AVG].cell() if (m, s, et.AVG) in ssr else '-'} | "
+            f"{paper(et.PAPER_SSR.get(m), s)}"
             for s in splits) + " |")
         for rank in (1, 2):
             lines.append(f"| {label[m]}, {et.MODE_NAMES[rank]} mode | " + " | ".join(
@@ -66,16 +67,17 @@ def results_table(records: Sequence[Record]) -> list[str]:
 
 def runs_table(records: Sequence[Record]) -> list[str]:
     """Where each record comes from: command, checkpoint and dataset digests, machine and load."""
-    lines = ["| record | command | checkpoint (weights sha256) | dataset | samples | wall time | machine "
-             "| cores | workers | load average | note |", "|---" * 11 + "|"]
+    lines = ["| record | command | checkpoint (weights sha256) | dataset | samples | wall time "
+             "| machine | cores | workers | load average | note |", "|---" * 11 + "|"]
     for r in records:
         m = r.meta
         checkpoints = ", ".join(f"{c['weights_sha256'][:16]}" for c in m["checkpoints"].values())
         datasets = sorted({c["dataset_digest"] for c in m["checkpoints"].values()}
                           | ({m["dataset"]["digest"]} if "dataset" in m else set()))
-        lines.append(f"| `results/{r.name}` | `{m['command']}` | {checkpoints} | {', '.join(datasets)} "
-                     f"| {m['samples']} | {m['seconds']} s | {m['machine']} | {m['cores']} "
-                     f"| {m['workers']} | {m['load_average']:.1f} | {m.get('note') or '-'} |")
+        lines.append(f"| `results/{r.name}` | `{m['command']}` | {checkpoints} "
+                     f"| {', '.join(datasets)} | {m['samples']} | {m['seconds']} s "
+                     f"| {m['machine']} | {m['cores']} | {m['workers']} | {m['load_average']:.1f} "
+                     f"| {m.get('note') or '-'} |")
     return lines
 
 
