@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 
@@ -57,6 +58,7 @@ def test_header_fields_round_trip(tmp_path: Path, monkeypatch: pytest.MonkeyPatc
     assert fields["command"] == f"actaim2 evaluate --out {tmp_path / 'run'} --workers 2"
     assert (fields["seconds"], fields["workers"], fields["robot"]) == (42, 2, "panda")
     assert isinstance(fields["load_average"], float)
+    assert fields["cores"] == os.cpu_count() and fields["machine"]
     assert fields["checkpoints"]["actaim2"]["weights_sha256"] == SHA
 
 

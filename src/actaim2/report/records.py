@@ -17,12 +17,11 @@ from __future__ import annotations
 import gzip
 import json
 import os
-import platform
 import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from actaim2.eval.results import RESULTS_FILE, RUN_FILE
+from actaim2.eval.results import RESULTS_FILE, RUN_FILE, machine_description
 
 RESULTS_DIR = "results"
 RECORD_FILE = "record.json"
@@ -36,6 +35,7 @@ _RUN = re.compile(r"^- this run: (?P<seconds>\d+) s on (?P<workers>\d+) worker\(
 _METHOD = re.compile(r"^- (?P<method>\w+): checkpoint `(?P<path>[^`]*)`, "
                      r"weights sha256 `(?P<sha>\w+)`, "
                      r"dataset (?P<dataset>\S+), views (?P<views>\S+), ")
+_MACHINE = re.compile(r"^- machine: (?P<machine>.*), (?P<cores>\d+) cores$")
 _DATASET = re.compile(r"^- dataset `(?P<path>[^`]*)` digest (?P<digest>\S+)$")
 
 
@@ -60,7 +60,8 @@ class Record:
 
 def parse_tables_header(text: str) -> dict:
     """The fields of an evaluation ``tables.md`` header: command, seconds, workers, load average,
-    render path, robot, per method its checkpoint, and the ``--data`` dataset if given."""
+    render path, robot, machine and cores (when the header has them), per method
+    its checkpoint, and the ``--data`` dataset if given."""
     fields: dict = {"checkpoints": {}}
     for line in text.splitlines():
         if m := _COMMAND.match(line):
@@ -72,6 +73,8 @@ def parse_tables_header(text: str) -> dict:
             fields["checkpoints"][m["method"]] = {"path": m["path"], "weights_sha256": m["sha"],
                                                   "dataset_digest": m["dataset"],
                                                   "perception_digest": m["views"]}
+        elif m := _MACHINE.match(line):
+            fields.update(machine=m["machine"], cores=int(m["cores"]))
         elif m := _DATASET.match(line):
             fields["dataset"] = {"path": m["path"], "digest": m["digest"]}
         elif line.startswith("## "):
@@ -82,26 +85,18 @@ def parse_tables_header(text: str) -> dict:
     return fields
 
 
-def this_machine() -> str:
-    """One line naming the machine: OS, architecture, CPU model where Linux says it."""
-    cpu = ""
-    cpuinfo = Path("/proc/cpuinfo")
-    if cpuinfo.exists():
-        cpu = next((line.split(":", 1)[1].strip() for line in cpuinfo.read_text().splitlines()
-                    if line.startswith("model name")), "")
-    return ", ".join(p for p in (platform.system(), platform.machine(), cpu) if p)
-
-
 def record_from_evaluation(run_dir: Path, root: Path, name: str, *, machine: str | None = None,
                            cores: int | None = None, note: str = "", source: str = "") -> Path:
     """Write ``root/results/<name>/`` from an evaluation folder (``results.jsonl``, ``run.json``,
-    ``tables.md``); machine and cores default to this machine's. Returns the record's folder."""
+    ``tables.md``); machine and cores default to the header's, else this machine's. Returns the
+    record's folder."""
     run_dir = Path(run_dir)
     header = parse_tables_header((run_dir / "tables.md").read_text())
     lines = [line for line in (run_dir / RESULTS_FILE).read_text().splitlines() if line.strip()]
     meta = {"name": name, "kind": "evaluation", **header,
             "run": json.loads((run_dir / RUN_FILE).read_text()), "samples": len(lines),
-            "machine": machine or this_machine(), "cores": cores or os.cpu_count(),
+            "machine": machine or header.get("machine") or machine_description(),
+            "cores": cores or header.get("cores") or os.cpu_count(),
             "note": note, "source": source or str(run_dir)}
     out = Path(root) / RESULTS_DIR / name
     out.mkdir(parents=True, exist_ok=True)

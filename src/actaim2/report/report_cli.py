@@ -20,8 +20,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--add", type=Path, metavar="RUN_DIR",
                         help="make a record of this actaim2 evaluate output, then regenerate")
     parser.add_argument("--name", help="the record's folder name under results/ (with --add)")
-    parser.add_argument("--machine", help="the run's machine (with --add; default: this one)")
-    parser.add_argument("--cores", type=int, help="its CPU cores (with --add; default: these)")
+    parser.add_argument("--machine",
+                        help="the run's machine (with --add; default: tables.md's, else this)")
+    parser.add_argument("--cores", type=int,
+                        help="its CPU cores (with --add; default: as --machine)")
     parser.add_argument("--note", default="", help="a remark kept in the record (with --add)")
     parser.add_argument("--source", default="",
                         help="where the run came from (with --add; default: RUN_DIR)")
