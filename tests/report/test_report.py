@@ -12,8 +12,8 @@ import pytest
 
 from actaim2.cli import main
 from actaim2.eval.evaluate_cli import _header
-from actaim2.report.records import RECORD_FILE, RESULTS_DIR, SAMPLES_FILE, parse_tables_header, \
-    record_from_evaluation
+from actaim2.report.records import MAX_BYTES, RECORD_FILE, RESULTS_DIR, SAMPLES_FILE, \
+    load_record, parse_tables_header, record_from_evaluation
 
 ROOT = Path(__file__).resolve().parents[2]
 SHA = "ab" * 32
@@ -50,6 +50,17 @@ def _evaluation_folder(folder: Path, monkeypatch: pytest.MonkeyPatch) -> None:
 
 def test_the_repository_tables_match_the_committed_records(capsys: pytest.CaptureFixture) -> None:
     assert main(["report", "--check", "--root", str(ROOT)]) == 0, capsys.readouterr().out
+
+
+def test_committed_records_are_compact_and_say_where_they_ran() -> None:
+    folders = sorted(p for p in (ROOT / RESULTS_DIR).iterdir() if p.is_dir())
+    assert folders
+    for folder in folders:
+        assert sum(p.stat().st_size for p in folder.iterdir()) < MAX_BYTES, folder
+        record = load_record(ROOT, folder.name)
+        for field in ("command", "checkpoints", "machine", "cores", "load_average", "seconds"):
+            assert record.meta.get(field) not in (None, ""), (folder.name, field)
+        assert len(record.samples) == record.meta["samples"]
 
 
 def test_header_fields_round_trip(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
