@@ -16,7 +16,7 @@ from actaim2.train.checkpoint import encoder_path
 
 CHECKPOINTS = Path(__file__).resolve().parents[2] / "actaim2_policy" / "checkpoints"
 SERVED = {"actaim2_ring5": "ring5", "actaim2_azure_kinect": "azure_kinect"}  # policy_node.yaml, policy_node_azure.yaml
-SHIPS_ENCODER = {"actaim2_ring5"}  # actaim2_azure_kinect was trained before E travelled with checkpoints (README)
+SHIPS_ENCODER = {"actaim2_ring5"}  # actaim2_azure_kinect was trained before E travelled with checkpoints (docs/finetuning.md)
 
 
 def test_every_committed_checkpoint_is_served_by_a_node_configuration():
@@ -46,7 +46,7 @@ def test_a_shipped_encoder_is_the_one_the_selector_learned_from(name):
     the E whose z the selector was trained on, or fine-tuning would mix two embeddings."""
     encoder = encoder_path(CHECKPOINTS / name)
     if name not in SHIPS_ENCODER:
-        assert not encoder.exists()  # the README says this checkpoint is shipped without E
+        assert not encoder.exists()  # docs/finetuning.md: this checkpoint is shipped without E
         return
     meta = json.loads((CHECKPOINTS / f"{name}.json").read_text())
     assert encoder_digest(encoder) == meta["lineage"]["encoder_digest"]

@@ -296,6 +296,7 @@ def _data_digest(data: Path | None) -> str:
 def _header(args, preset: str, described: dict, render_path: str, n_objects: int, n_tasks: int, n_done: int,
             errors: int, seconds: float) -> list[str]:
     from actaim2.eval.evalset import EVAL_SET_VERSION
+    from actaim2.eval.results import machine_description
 
     command = "actaim2 evaluate " + " ".join(shlex.quote(a) for a in sys.argv[2:]) if sys.argv[1:2] == ["evaluate"] \
         else "actaim2 evaluate (called from Python)"
@@ -303,7 +304,8 @@ def _header(args, preset: str, described: dict, render_path: str, n_objects: int
              f"- size: {preset}, {n_objects} objects, {n_tasks} samples planned, {n_done} in the results "
              f"({errors} errors this run), evaluation set version {EVAL_SET_VERSION}",
              f"- this run: {seconds:.0f} s on {args.workers} worker(s){' (Ray ' + args.ray + ')' if args.ray else ''}, "
-             f"load average {os.getloadavg()[0]:.1f}, render path {render_path}, robot {args.robot}"]
+             f"load average {os.getloadavg()[0]:.1f}, render path {render_path}, robot {args.robot}",
+             f"- machine: {machine_description()}, {os.cpu_count()} cores"]
     for method, d in described.items():
         lines.append(f"- {method}: checkpoint `{d['path']}`, weights sha256 `{d['weights_sha256']}`, "
                      f"dataset {d['dataset_digest']}, views {d['perception_digest']}, predictor reads "

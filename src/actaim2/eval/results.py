@@ -12,11 +12,22 @@ checkpoint for a method already in the file is refused, so numbers of two models
 from __future__ import annotations
 
 import json
+import platform
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
 RESULTS_FILE = "results.jsonl"
 RUN_FILE = "run.json"
+
+
+def machine_description() -> str:
+    """One line naming this machine: OS, architecture, and the CPU model where Linux says it."""
+    cpu = ""
+    cpuinfo = Path("/proc/cpuinfo")
+    if cpuinfo.exists():
+        cpu = next((line.split(":", 1)[1].strip() for line in cpuinfo.read_text().splitlines()
+                    if line.startswith("model name")), "")
+    return ", ".join(p for p in (platform.system(), platform.machine(), cpu) if p)
 
 
 class RunMismatchError(ValueError):

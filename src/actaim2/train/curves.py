@@ -3,7 +3,7 @@
 One panel per phase: the training loss of the epoch's last batch and the loss on the held-out
 10% of ``train_seen`` at each epoch end, against the phase's step; the selector panel adds the
 validation reconstruction error, the predictor and joint panels the action loss's parts.
-TensorBoard (``<run>/tensorboard``) has every scalar; this picture is what the README shows.
+TensorBoard (``<run>/tensorboard``) has every scalar; this picture is the overview (docs/training.md).
 """
 from __future__ import annotations
 

@@ -405,7 +405,7 @@ def selector_figures(selector: ModeSelector, data: TrainingData, device: torch.d
 def markdown(split: str, actions: dict[str, dict[str, ActionFigures]], selector: dict,
              outcomes: dict[str, OutcomeFigures], chain: ModeChainFigures, drawn: dict[str, DrawnFollowing],
              swapped: dict[str, SwappedFollowing], noise_scale: float = 1.0) -> str:
-    """The figures as the README shows them: over all keyframes, then per keypose phase (draws at ``noise_scale``)."""
+    """The figures as validation.md shows them: over all keyframes, then per keypose phase (draws at ``noise_scale``)."""
     lines = [f"Validation on the visually-labelled successes of `{split}` "
              f"({selector['trajectories']} trajectories, {actions['reconstructed']['all'].keyframes} keyframes):", "",
              "| eps fed to the predictor | translation median / p90 (mm) | rotation median / p90 (deg) | gripper accuracy |",
