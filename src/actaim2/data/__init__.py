@@ -1,6 +1,6 @@
 """Self-supervised data collection (paper appendix "Dataset Generation", Algorithm 1).
 
-Modules, one job each (docs/data_collection.md tells the whole story):
+Modules, one job each (docs/data.md tells the whole story):
   trajectory        in-memory records: keyposes, multi-camera RGB-D observations, object state
   actions           the four-keypose action primitive every sampler returns; the Sampler protocol
   object_cloud      object points from the cameras (fusion, support and face removal, DBSCAN parts)

@@ -258,7 +258,7 @@ def visual_labels(entries: list[dict], motions: dict[str, list[PartMotion]], cal
     ``reaches``: :func:`object_reaches` of the entries (None: read off them here with the default
     :class:`ReachConfig`). Without enough moved trajectories of both outcomes in the calibration
     split the model is :data:`DEFAULT_MODEL`, the calibration measured on the collection in
-    docs/data_collection.md.
+    docs/data.md.
     """
     parts = [motions[e["id"]] for e in entries]
     reaches = reaches if reaches is not None else object_reaches(entries, motions)

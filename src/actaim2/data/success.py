@@ -22,7 +22,7 @@ horizontal axis works against gravity and is built with a short range (toggles, 
 faucet lever lifted at the side: 40-60 deg) where one turning about a vertical axis swings
 wide (doors, top faucet levers and spouts: 70-130 deg); a vertical slide (a dimmer, a sash)
 is short where a horizontal one (a drawer, a sliding door) is long. Measured on data/v2
-(docs/data_collection.md), the two axis terms take the held-out categories from 83.8% to
+(docs/data.md), the two axis terms take the held-out categories from 83.8% to
 88.5% balanced accuracy.
 
 A kind of part the calibration split lacks (a box's 0.10-0.13 m sliding lid against its
@@ -36,16 +36,16 @@ unknown and the term is off (0), so a lone farthest motion (an unfinished push, 
 nothing. The absolute terms stay: trajectories that pile up at a stop a few degrees away
 (a door nudged against its seal) are not successes for it, and an object whose part hardly
 moves gets no success quota. On data/v2 the reach takes ``heldout_category`` from 88.5% to
-93.8% balanced accuracy (docs/data_collection.md). Ten weights, fitted on the calibration split (``train_seen``)
+93.8% balanced accuracy (docs/data.md). Ten weights, fitted on the calibration split (``train_seen``)
 against the ground truth, and a threshold on P(success) chosen there for accuracy (the
 logistic fit maximises likelihood, not accuracy: it moves the cut by a few hundredths). The
 ground truth is read for that and for the report, nowhere else. A trajectory in which nothing
 moved is a failure without asking the model; one with several moved parts succeeds if one does. ``DEFAULT_MODEL`` holds the
-parameters measured on the collection in docs/data_collection.md, so a single trajectory can
+parameters measured on the collection in docs/data.md, so a single trajectory can
 be labelled without a dataset (tests, the policy's evaluation).
 
 The paper's alternative, one threshold on ``||E(O_init) - E(O_final)||`` (:func:`change`),
-is kept as a measured comparison (labelling.json, docs/data_collection.md).
+is kept as a measured comparison (labelling.json, docs/data.md).
 """
 from __future__ import annotations
 
@@ -170,7 +170,7 @@ class SuccessModel:
         return cls(tuple(float(w) for w in data["weights"]), float(data["threshold"]))
 
 
-# Calibrated on the train_seen trajectories of the moderate collection in docs/data_collection.md
+# Calibrated on the train_seen trajectories of the moderate collection in docs/data.md
 # (data/label_v2: 453 trajectories, 18 objects, reaches read off them); every labelling of a dataset
 # recalibrates on its own split. data/v2's own calibration puts a door's mark without a reach at
 # 26.8 deg (its doors' 70-90 deg ranges overlap there), above door 0's 35% (24.9 deg), so it is not

@@ -7,7 +7,7 @@ structure. Within a structure a recipe draws sizes, handle kinds and shapes, joi
 friction and colours from a random generator: a (category, instance) pair always yields
 the same object (:mod:`.catalog` also redraws an instance that would be a near-duplicate of
 an earlier one). Sizes follow the real category where the robot's reach allows and are
-scaled down where it does not (doors, windows): docs/objects.md lists the real and generated
+scaled down where it does not (doors, windows): docs/simulation.md lists the real and generated
 ranges and the placement rule; the recipe records its ``front_distance`` in ``meta.json``.
 """
 from __future__ import annotations

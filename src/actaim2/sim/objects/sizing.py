@@ -6,7 +6,7 @@ The rule here, for a folder not written by the generator (those are built at rea
 
 1. **Category size.** The object's largest side at rest becomes :data:`CATEGORY_SIZES`'s value
    for its category: the middle of a range of real sizes that the robot can still work on
-   (docs/objects.md, "Sizes and placement", gives the real ranges and why some are smaller;
+   (docs/simulation.md, "Sizes and placement", gives the real ranges and why some are smaller;
    an unknown category gets :data:`DEFAULT_SIZE`).
 2. **Front distance.** Its closed front stands ``DEFAULT_FRONT_DISTANCE`` before the robot
    base, farther when its parts, all half-open (the default reset), would reach closer than
@@ -41,7 +41,7 @@ DEFAULT_FRONT_DISTANCE = 0.55  # m, for folders whose meta.json does not recomme
 SWEEP_SAMPLES = 9  # joint positions per movable joint in the workspace fit
 
 # Largest side (m) of an object at rest per category: (low, high) of sizes the robot can work on;
-# the rule uses the middle. Real ranges and the reasons for smaller ones: docs/objects.md.
+# the rule uses the middle. Real ranges and the reasons for smaller ones: docs/simulation.md.
 CATEGORY_SIZES: dict[str, tuple[float, float]] = {
     "storage_furniture": (0.5, 0.92),  # real 0.5-1.2 high; the top drawer stays below ~0.9 m
     "table": (0.6, 0.95),  # real 0.6-1.8 wide; drawers at 0.35-0.5 m
