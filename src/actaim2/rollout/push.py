@@ -40,6 +40,19 @@ class PushConfig:
 
 
 @dataclass(frozen=True)
+class PushPlan:
+    dof: int
+    point: np.ndarray  # where the fingertips meet the part's surface (world)
+    direction: np.ndarray  # unit push direction (world)
+    sign: float  # +1: towards the upper limit, -1: towards the lower one
+    path: list[np.ndarray]  # arm joint positions: the pre-pose, then the straight line, 1 cm apart
+
+    @property
+    def message(self) -> str:
+        return f"pushed at {np.round(self.point, 3).tolist()} along {np.round(self.direction, 2).tolist()}"
+
+
+@dataclass(frozen=True)
 class PushResult:
     dof: int
     pushed: bool  # a surface point and an IK path were found and executed
@@ -56,7 +69,20 @@ class ScriptedPush:
         self.ik = IKSolver(RobotModel(env.spec), None, IKOptions(restarts=10))
 
     def push(self, dof: int, rng: np.random.Generator | None = None) -> PushResult:
-        """Push DoF ``dof`` of the loaded object from where it is towards its farther limit."""
+        """Plan and execute a push of DoF ``dof``; the DoF's change says whether the part was there."""
+        env = self.env
+        lower, upper = env.object_limits()
+        q0 = env.object_dof()
+        plan = self.plan(dof, rng)
+        if isinstance(plan, str):
+            return PushResult(dof, False, 0.0, plan)
+        self.execute(plan)
+        moved = plan.sign * moved_fraction(q0, env.object_dof(), lower, upper)[dof]
+        return PushResult(dof, True, float(moved), plan.message)
+
+    def plan(self, dof: int, rng: np.random.Generator | None = None) -> PushPlan | str:
+        """A push of DoF ``dof`` from where it is, the direction with more room first; or why
+        there is none."""
         env, cfg = self.env, self.config
         rng = rng if rng is not None else np.random.default_rng(0)
         obj = env.object
@@ -82,13 +108,25 @@ class ScriptedPush:
                 tried += 1
                 p, d = part[k], sign * velocity[k] / speed[k]
                 path = self._joint_path(p, d, rng)
-                if path is None:
-                    continue
-                self._execute(path)
-                moved = sign * moved_fraction(q0, env.object_dof(), lower, upper)[dof]
-                return PushResult(dof, True, float(moved), f"pushed at {np.round(p, 3).tolist()} along {np.round(d, 2).tolist()}")
-        return PushResult(dof, False, 0.0, f"no reachable, unobstructed surface point on {joint.child_link.name} "
-                                           f"({len(order)} candidates, {tried} tried for IK)")
+                if path is not None:
+                    return PushPlan(dof, p, d, sign, path)
+        return (f"no reachable, unobstructed surface point on {joint.child_link.name} "
+                f"({len(order)} candidates, {tried} tried for IK)")
+
+    def execute(self, plan: PushPlan) -> None:
+        """Close the fingers, move to the pre-pose in joint space, then follow the line."""
+        env = self.env
+        env.grip(closed=True)
+        times, positions = self.timing(plan)
+        env.follow_trajectory(times[:1], positions[:1])
+        env.follow_trajectory(times[1:] - times[0], positions[1:], settle=0.3)
+
+    def timing(self, plan: PushPlan) -> tuple[np.ndarray, np.ndarray]:
+        """(times from now, positions) of the plan's waypoints from the arm's current joints: the
+        free move at most 0.5 rad/s per joint (at least 1 s), the line at ``speed``."""
+        path = np.asarray(plan.path)
+        free_move = max(1.0, float(np.max(np.abs(path[0] - self.env.robot.arm_positions()))) / 0.5)
+        return free_move + 0.01 / self.config.speed * np.arange(len(path)), path
 
     def _path_is_free(self, p: np.ndarray, d: np.ndarray, part: np.ndarray, others: np.ndarray) -> bool:
         """No object point within ``clearance`` of the hand's path before ``p`` (the part's own
@@ -120,15 +158,6 @@ class ScriptedPush:
             path.append(result.angles)
             seed = result.angles
         return path
-
-    def _execute(self, path: list[np.ndarray]) -> None:
-        env, cfg = self.env, self.config
-        env.grip(closed=True)
-        start = env.robot.arm_positions()
-        free_move = max(1.0, float(np.max(np.abs(path[0] - start))) / 0.5)  # s, at most 0.5 rad/s per joint
-        env.follow_trajectory(np.array([free_move]), path[0][None, :])
-        dt = 0.01 / cfg.speed
-        env.follow_trajectory(dt * np.arange(1, len(path)), np.asarray(path[1:]), settle=0.3)
 
 
 def _approach_frame(d: np.ndarray) -> np.ndarray:
