@@ -1,6 +1,7 @@
 """Helpers of the bag tests: messages serialized by rosbags (exact CDR; rclpy's serialize_message
 appends stray padding bytes that strict readers refuse), topic specs from the installed
-definitions, a disk that fills up, and the Jazzy reference bags (../shared/bags-reference)."""
+definitions, the two readers we did not write, a disk that fills up, and the Jazzy reference
+bags (../shared/bags-reference)."""
 from __future__ import annotations
 
 import errno
@@ -9,6 +10,9 @@ import os
 from pathlib import Path
 
 import numpy as np
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+from rosbags.highlevel import AnyReader
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.typesys import Stores, get_typestore
 
@@ -69,6 +73,25 @@ def tf_static(child: str) -> bytes:
         T["geometry_msgs/msg/Transform"](T["geometry_msgs/msg/Vector3"](1.0, 2.0, 3.0),
                                          T["geometry_msgs/msg/Quaternion"](0.0, 0.0, 0.0, 1.0)))
     return bytes(TYPESTORE.serialize_cdr(T["tf2_msgs/msg/TFMessage"]([transform]), "tf2_msgs/msg/TFMessage"))
+
+
+def read_anyreader(path: Path) -> dict[str, list]:
+    """topic -> [(timestamp, message)] as rosbags' AnyReader reads the bag (or file) at ``path``."""
+    out = {}
+    with AnyReader([path], default_typestore=TYPESTORE) as reader:
+        for connection, timestamp, raw in reader.messages():
+            out.setdefault(connection.topic, []).append((timestamp, reader.deserialize(raw, connection.msgtype)))
+    return out
+
+
+def read_mcap_package(path: Path) -> dict[str, list]:
+    """topic -> [(log time, message)] as the mcap package decodes every .mcap file of the bag ``path``."""
+    out = {}
+    for file in sorted(path.glob("*.mcap")):
+        with open(file, "rb") as f:
+            for _, channel, message, decoded in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+                out.setdefault(channel.topic, []).append((message.log_time, decoded))
+    return out
 
 
 class FullDisk(io.RawIOBase):
