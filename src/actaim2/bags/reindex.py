@@ -57,8 +57,9 @@ def _read_mcap(path: Path) -> _Contents:
 
     def finish(text: str) -> str:
         cut = salvage.finish(path, scanned, text)
+        after = f"the {cut} byte(s) after them cut" if cut else "nothing after them"
         return (f"not finished by its writer ({scanned.reason or 'no footer'}): {stats.message_count} message(s) in "
-                f"{len(scanned.chunks)} complete chunk(s) kept, the {cut} byte(s) after them cut, summary written")
+                f"{len(scanned.chunks)} complete chunk(s) kept, {after}, summary written")
 
     return _Contents(topics, stats, counts, md.DEFAULT_ROS_DISTRO, None if scanned.finished else finish)
 
