@@ -45,7 +45,9 @@ from actaim2.bags.definitions import MessageDefinitions, UnknownMessageType
 from actaim2.bags.metadata import TopicSpec
 from actaim2.bags.qos import record_choice
 from actaim2.bags.recorder import Recorder, RecordSummary, unique_path
-from actaim2.bags.writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE, DEFAULT_MAX_CHUNK_AGE, STORAGES, BagWriter
+from actaim2.bags.writer import (
+    COMPRESSIONS, DEFAULT_CHUNK_SIZE, DEFAULT_MAX_CHUNK_AGE, STORAGES, BagWriter,
+)
 from actaim2.ros_main import spin_until
 from actaim2.ros_params import declare_parameters
 from actaim2_policy.ros_bags import bag_qos, install_prefixes, message_class, rclpy_qos
@@ -61,9 +63,12 @@ PARAMETERS = {
     "storage": ("mcap", f"storage format: {' | '.join(STORAGES)}"),
     "compression": ("lz4", f"MCAP chunk compression: {' | '.join(COMPRESSIONS)} (sqlite3: none)"),
     "chunk_size": (DEFAULT_CHUNK_SIZE, "bytes: an MCAP chunk is compressed and written once it holds this much"),
-    "max_chunk_age": (DEFAULT_MAX_CHUNK_AGE, "s: an MCAP chunk (sqlite3: the uncommitted messages) is also written once its "
-                                             "oldest message has waited this long, so a recorder that dies loses at most "
-                                             "that much; 0 = by size only"),
+    "max_chunk_age": (
+        DEFAULT_MAX_CHUNK_AGE,
+        "s: an MCAP chunk (sqlite3: the uncommitted messages) is also written once its oldest "
+        "message has waited this long, so a recorder that dies loses at most that much; "
+        "0 = by size only",
+    ),
     "max_bag_size": (0, "bytes: start a new storage file when the current one reaches this size; 0 = never"),
     "max_bag_duration": (0.0, "s: start a new storage file when the current one spans this long; 0 = never"),
     "split_by_episode": (False, "one bag per episode: START on episode_topic opens it, END closes it"),
@@ -126,8 +131,8 @@ class BagRecorder(Node):
     # --- bags -------------------------------------------------------------------------------
     def _make_writer(self, name: str) -> BagWriter:
         path = unique_path(self._output / name) if self._episodes else self._output
-        return BagWriter(path, self._storage, self._compression, self._chunk_size, self._max_size, self._max_duration_ns,
-                         max_chunk_age=self._max_chunk_age)
+        return BagWriter(path, self._storage, self._compression, self._chunk_size, self._max_size,
+                         self._max_duration_ns, max_chunk_age=self._max_chunk_age)
 
     def _on_write_error(self, reason: str) -> None:
         self.get_logger().error(f"recording stopped: {reason}; what reached the disk stays readable")

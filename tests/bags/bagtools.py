@@ -76,20 +76,22 @@ def tf_static(child: str) -> bytes:
 
 
 def read_anyreader(path: Path) -> dict[str, list]:
-    """topic -> [(timestamp, message)] as rosbags' AnyReader reads the bag (or file) at ``path``."""
+    """topic -> [(timestamp, message)] as rosbags' AnyReader reads the bag (or file) ``path``."""
     out = {}
     with AnyReader([path], default_typestore=TYPESTORE) as reader:
         for connection, timestamp, raw in reader.messages():
-            out.setdefault(connection.topic, []).append((timestamp, reader.deserialize(raw, connection.msgtype)))
+            message = reader.deserialize(raw, connection.msgtype)
+            out.setdefault(connection.topic, []).append((timestamp, message))
     return out
 
 
 def read_mcap_package(path: Path) -> dict[str, list]:
-    """topic -> [(log time, message)] as the mcap package decodes every .mcap file of the bag ``path``."""
+    """topic -> [(log time, message)] as the mcap package decodes bag ``path``'s .mcap files."""
     out = {}
     for file in sorted(path.glob("*.mcap")):
         with open(file, "rb") as f:
-            for _, channel, message, decoded in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
+            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            for _, channel, message, decoded in reader.iter_decoded_messages():
                 out.setdefault(channel.topic, []).append((message.log_time, decoded))
     return out
 

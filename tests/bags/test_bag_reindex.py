@@ -37,7 +37,8 @@ def write_bag(path, storage="mcap", frames=120, **kwargs):
 
 
 def digests(bag):
-    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in bag.iterdir() if p.name != "metadata.yaml"}
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in bag.iterdir() if p.name != "metadata.yaml"}
 
 
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
@@ -78,7 +79,8 @@ def test_an_mcap_file_cut_anywhere_keeps_every_complete_chunk_for_both_readers(t
         (bag / mcap.name).write_bytes(data[:cut])
         lines = []
         body = reindex(bag, lines.append)
-        expected = sum(sum(c.channel_counts.values()) for c in chunks if c.start + c.chunk_length <= kept_through)
+        expected = sum(sum(c.channel_counts.values())
+                       for c in chunks if c.start + c.chunk_length <= kept_through)
         assert body["message_count"] == expected, (cut, lines)
         assert "not finished by its writer" in lines[0]
         for read in (read_anyreader, read_mcap_package):
@@ -95,7 +97,8 @@ def test_the_writer_thread_puts_old_messages_on_disk_without_waiting_for_more(tm
     def record(max_chunk_age):
         path = tmp_path / f"age_{max_chunk_age}"
         recorder = Recorder(lambda name: BagWriter(path / name, max_chunk_age=max_chunk_age))
-        recorder.add_topic(spec("/joint_states", "sensor_msgs/msg/JointState"), reliable=True, latched=False)
+        recorder.add_topic(spec("/joint_states", "sensor_msgs/msg/JointState"), reliable=True,
+                           latched=False)
         recorder.start_bag("bag", T0)
         for i in range(10):
             recorder.put("/joint_states", T0 + i, joint_state(i))
@@ -114,9 +117,10 @@ def test_a_bag_without_metadata_yaml_is_refused_with_the_command_that_rebuilds_i
     bag = tmp_path / "bag"
     write_bag(bag)
     (bag / "metadata.yaml").unlink()
-    with pytest.raises(FileNotFoundError, match=f"metadata.yaml is missing .*`actaim2 bag-reindex {bag}`"):
+    advice = f"`actaim2 bag-reindex {bag}`"
+    with pytest.raises(FileNotFoundError, match=f"metadata.yaml is missing .*{advice}"):
         BagSource(bag, print)
-    with pytest.raises(BagProblem, match=f"`actaim2 bag-reindex {bag}`"):  # bag2dataset reports it so
+    with pytest.raises(BagProblem, match=advice):  # bag2dataset reports it so
         next(read_episodes(bag, {"/points2": "azure"}, print))
     reindex(bag, print)
     played = [m.topic for m in BagSource(bag, print).messages({"/joint_states", "/tf_static"})]

@@ -8,7 +8,9 @@ import threading
 import numpy as np
 import pytest
 import yaml
-from bagtools import TYPESTORE, FullDisk, cloud, joint_state, read_anyreader, read_mcap_package, spec, tf_static
+from bagtools import (
+    TYPESTORE, FullDisk, cloud, joint_state, read_anyreader, read_mcap_package, spec, tf_static,
+)
 from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 

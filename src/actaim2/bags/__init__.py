@@ -14,6 +14,7 @@ Built on ``rosbags`` (record helpers, readers, type system). Files one job each:
   qos.py          which QoS the recorder subscribes with and the player publishes with
   source.py       reading a bag for replay: per-file, per-topic problems reported, never fatal
   salvage.py      messages before the damage of a truncated MCAP file; finishing such a file
-  reindex.py      `actaim2 bag-reindex`: finish the files of a recorder that died, rebuild metadata.yaml
+  reindex.py      `actaim2 bag-reindex`: finish the files a recorder that died left open,
+                  rebuild metadata.yaml
   playback.py     original timing (rate, start offset, loop), /clock ticks, timing error
 """

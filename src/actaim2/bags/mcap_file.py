@@ -184,15 +184,16 @@ class McapFile:
         self._write(chunk_head, compressed, indexes)
         position = start + chunk_length + len(indexes)
         self._chunks.append(
-            Chunk(start, position, chunk_length, offsets, len(compressed), len(raw), pending.start_ns, pending.end_ns,
-                  {c: len(e) for c, e in pending.index.items()}, self.compression)
+            Chunk(start, position, chunk_length, offsets, len(compressed), len(raw),
+                  pending.start_ns, pending.end_ns, {c: len(e) for c, e in pending.index.items()},
+                  self.compression)
         )
         self._good_end = position
         self._pending = _Pending()
 
     @property
     def pending_since(self) -> float | None:
-        """time.monotonic() when the oldest message not yet on disk was written; None if none is."""
+        """time.monotonic() when the oldest message not on disk yet was written; None: none is."""
         return self._pending.since
 
     @property
@@ -244,17 +245,20 @@ class McapFile:
 
     def _write_summary(self) -> None:
         stats, counts = self.stats()
-        self._write(summary(self._good_end, self._schema_records, self._channel_records, sorted(self._channels),
-                            self._chunks, self._describe(stats, counts)))
+        self._write(summary(self._good_end, self._schema_records, self._channel_records,
+                            sorted(self._channels), self._chunks, self._describe(stats, counts)))
 
 
-def message_indexes(position: int, index: dict[int, list[tuple[int, int]]]) -> tuple[bytes, dict[int, int]]:
+def message_indexes(
+    position: int, index: dict[int, list[tuple[int, int]]]
+) -> tuple[bytes, dict[int, int]]:
     """The message index records of one chunk, written at ``position`` (right after the chunk),
     from ``index`` (channel id -> (log time, offset in the uncompressed chunk) of each message);
     and the file offset of each channel's record."""
     records, offsets = [], {}
     for channel, entries in sorted(index.items()):
-        body = struct.pack("<HI", channel, 16 * len(entries)) + b"".join(struct.pack("<QQ", t, o) for t, o in entries)
+        body = struct.pack("<HI", channel, 16 * len(entries))
+        body += b"".join(struct.pack("<QQ", t, o) for t, o in entries)
         offsets[channel] = position + sum(len(r) for r in records)
         records.append(_record(_OP_MESSAGE_INDEX, body))
     return b"".join(records), offsets
@@ -285,7 +289,9 @@ def summary(
     chunk indexes, metadata index, statistics), summary offsets, footer and closing magic."""
     stats, counts = chunk_stats("", chunks)
     data_end = _record(_OP_DATA_END, struct.pack("<I", 0))
-    metadata_record = _record(_OP_METADATA, _string("rosbag2") + _string_map({"serialized_metadata": metadata_text}))
+    metadata_record = _record(
+        _OP_METADATA, _string("rosbag2") + _string_map({"serialized_metadata": metadata_text})
+    )
     metadata_start = position
     summary_start = metadata_start + len(metadata_record) + len(data_end)
     schemas = b"".join(schema_records)
@@ -293,9 +299,10 @@ def summary(
     chunk_indexes = b"".join(
         _record(
             _OP_CHUNK_INDEX,
-            struct.pack("<QQQQ", c.start_ns if c.channel_counts else 0, c.end_ns, c.start, c.chunk_length)
+            struct.pack("<QQQQ", c.start_ns if c.channel_counts else 0, c.end_ns, c.start,
+                        c.chunk_length)
             + struct.pack("<I", 10 * len(c.index_offsets))
-            + b"".join(struct.pack("<HQ", ch, off) for ch, off in sorted(c.index_offsets.items()))
+            + b"".join(struct.pack("<HQ", ch, o) for ch, o in sorted(c.index_offsets.items()))
             + struct.pack("<Q", c.end - c.start - c.chunk_length)
             + _string(c.compression)
             + struct.pack("<QQ", c.compressed_size, c.uncompressed_size),
@@ -303,14 +310,16 @@ def summary(
         for c in chunks
     )
     metadata_index = _record(
-        _OP_METADATA_INDEX, struct.pack("<QQ", metadata_start, len(metadata_record)) + _string("rosbag2")
+        _OP_METADATA_INDEX,
+        struct.pack("<QQ", metadata_start, len(metadata_record)) + _string("rosbag2"),
     )
     channel_counts = b"".join(struct.pack("<HQ", ch, counts.get(ch, 0)) for ch in channel_ids)
     statistics = _record(
         _OP_STATISTICS,
         struct.pack(
             "<QHIIIIQQI", stats.message_count, len(schema_records), len(channel_records), 0, 1,
-            len(chunks), stats.start_ns if stats.message_count else 0, stats.end_ns, len(channel_counts),
+            len(chunks), stats.start_ns if stats.message_count else 0, stats.end_ns,
+            len(channel_counts),
         )
         + channel_counts,
     )
@@ -319,7 +328,10 @@ def summary(
     offset, offsets = summary_start, []
     for op, block in groups:
         if block:
-            offsets.append(_record(_OP_SUMMARY_OFFSET, struct.pack("<BQQ", op, offset, len(block))))
+            offsets.append(
+                _record(_OP_SUMMARY_OFFSET, struct.pack("<BQQ", op, offset, len(block)))
+            )
         offset += len(block)
     footer = _record(_OP_FOOTER, struct.pack("<QQI", summary_start, offset, 0))
-    return b"".join([metadata_record, data_end, *(block for _, block in groups), *offsets, footer, MAGIC])
+    blocks = [block for _, block in groups]
+    return b"".join([metadata_record, data_end, *blocks, *offsets, footer, MAGIC])

@@ -229,7 +229,7 @@ class Recorder:
 
     # --- writer thread -------------------------------------------------------------------
     def _run(self) -> None:
-        flush_at: float | None = None  # time.monotonic() when the bag's pending messages are due on disk
+        flush_at: float | None = None  # time.monotonic() when pending messages are due on disk
         while True:
             with self._cond:
                 timeout = None if flush_at is None else max(0.0, flush_at - time.monotonic())
@@ -243,7 +243,7 @@ class Recorder:
             if self.error is None:
                 if item is not None:
                     self._guarded(lambda: self._handle(item))
-                flush_at = self._guarded(lambda: self._writer.flush_aged() if self._writer is not None else None)
+                flush_at = self._guarded(self._flush_aged)
 
     def _guarded(self, action: Callable[[], T]) -> T | None:
         try:
@@ -251,6 +251,9 @@ class Recorder:
         except Exception as exc:  # noqa: BLE001 - a write error (or a bug) must end the recording visibly, not the thread silently
             self._fail(exc)
             return None
+
+    def _flush_aged(self) -> float | None:
+        return self._writer.flush_aged() if self._writer is not None else None
 
     def _handle(self, item: tuple) -> None:
         kind = item[0]

@@ -50,7 +50,8 @@ def _read_mcap(path: Path) -> _Contents:
     scanned = salvage.scan(path)
     topics = {
         cid: TopicSpec(c.topic, c.msgtype, c.definition, c.metadata.get("topic_type_hash", ""),
-                       qos_from_text(c.metadata.get("offered_qos_profiles", "")), c.message_encoding)
+                       qos_from_text(c.metadata.get("offered_qos_profiles", "")),
+                       c.message_encoding)
         for cid, c in sorted(scanned.channels.items())
     }
     stats, counts = chunk_stats(path.name, scanned.chunks)
@@ -58,10 +59,12 @@ def _read_mcap(path: Path) -> _Contents:
     def finish(text: str) -> str:
         cut = salvage.finish(path, scanned, text)
         after = f"the {cut} byte(s) after them cut" if cut else "nothing after them"
-        return (f"not finished by its writer ({scanned.reason or 'no footer'}): {stats.message_count} message(s) in "
-                f"{len(scanned.chunks)} complete chunk(s) kept, {after}, summary written")
+        return (f"not finished by its writer ({scanned.reason or 'no footer'}): "
+                f"{stats.message_count} message(s) in {len(scanned.chunks)} complete chunk(s) "
+                f"kept, {after}, summary written")
 
-    return _Contents(topics, stats, counts, md.DEFAULT_ROS_DISTRO, None if scanned.finished else finish)
+    return _Contents(topics, stats, counts, md.DEFAULT_ROS_DISTRO,
+                     None if scanned.finished else finish)
 
 
 def _read_sqlite(path: Path) -> _Contents:
@@ -69,7 +72,8 @@ def _read_sqlite(path: Path) -> _Contents:
 
     def finish(text: str) -> str:
         sqlite_file.store_metadata(path, text)
-        return f"not finished by its writer: {contents.stats.message_count} committed message(s) kept, metadata stored"
+        return (f"not finished by its writer: {contents.stats.message_count} committed message(s) "
+                "kept, metadata stored")
 
     return _Contents(contents.topics, contents.stats, contents.counts, contents.ros_distro,
                      None if contents.has_metadata else finish)
@@ -102,9 +106,11 @@ def reindex(bag: Path, report: Callable[[str], None]) -> dict:
             counts[spec.name] += contents.counts.get(topic_id, 0)
         files.append(contents.stats)
         # each file stores the bag as of its own end, as the writer does
-        body = md.document(storage, list(topics.values()), [counts[n] for n in topics], files, contents.ros_distro)
+        body = md.document(storage, list(topics.values()), [counts[n] for n in topics], files,
+                           contents.ros_distro)
         if contents.finish is None:
-            report(f"{path.name}: {contents.stats.message_count} message(s), finished by its writer (only read)")
+            report(f"{path.name}: {contents.stats.message_count} message(s), finished by its "
+                   "writer (only read)")
         else:
             report(f"{path.name}: {contents.finish(yaml_emit.dump(body))}")
     md.write_metadata_yaml(bag, body)
@@ -126,5 +132,6 @@ def main(args: argparse.Namespace) -> int:
             print(f"  cannot be reindexed: {exc}", file=sys.stderr)
             failed += 1
             continue
-        print(f"  metadata.yaml written: {body['message_count']} message(s) in {len(body['files'])} file(s)")
+        print(f"  metadata.yaml written: {body['message_count']} message(s) in "
+              f"{len(body['files'])} file(s)")
     return 1 if failed else 0

@@ -45,10 +45,12 @@ class SalvageScan:
     reason: str = ""
     finished: bool = False  # the file ends with a footer: its writer closed it
     header_end: int = 0  # byte offset after the header record
-    schema_records: dict[int, bytes] = field(default_factory=dict)  # schema id -> the record as written
-    channel_records: dict[int, bytes] = field(default_factory=dict)  # channel id -> the record as written
+    # schema / channel id -> the record as written
+    schema_records: dict[int, bytes] = field(default_factory=dict)
+    channel_records: dict[int, bytes] = field(default_factory=dict)
     chunks: list[Chunk] = field(default_factory=list)  # complete chunk records, in file order
-    last_index: dict[int, list[tuple[int, int]]] = field(default_factory=dict)  # the last chunk's message index
+    # the last chunk's message index: channel id -> (log time, offset in the uncompressed chunk)
+    last_index: dict[int, list[tuple[int, int]]] = field(default_factory=dict)
 
 
 def _string(buf: bytes, pos: int) -> tuple[str, int]:
@@ -76,7 +78,9 @@ def _records(buf: bytes, start: int = 0) -> Iterator[tuple[int, int, int, int]]:
         pos += 9 + length
 
 
-def _walk(path: Path, scan: SalvageScan, want_messages: bool) -> Iterator[tuple[int, int, bytes]]:
+def _walk(
+    path: Path, scan: SalvageScan, want_messages: bool
+) -> Iterator[tuple[int, int, bytes]]:
     with open(path, "rb") as f:
         if f.seek(0, 2) < len(MAGIC):
             scan.reason = "not an MCAP file (bad magic)"
@@ -85,17 +89,20 @@ def _walk(path: Path, scan: SalvageScan, want_messages: bool) -> Iterator[tuple[
             yield from _walk_data(data, scan, want_messages)
 
 
-def _walk_data(data: mmap.mmap, scan: SalvageScan, want_messages: bool) -> Iterator[tuple[int, int, bytes]]:
+def _walk_data(
+    data: mmap.mmap, scan: SalvageScan, want_messages: bool
+) -> Iterator[tuple[int, int, bytes]]:
     if data[: len(MAGIC)] != MAGIC:
         scan.reason = "not an MCAP file (bad magic)"
         return
-    scan.finished = len(data) >= 2 * len(MAGIC) + 29 and data[-37:-28] == _FOOTER_HEAD and data[-8:] == MAGIC
+    scan.finished = (len(data) >= 2 * len(MAGIC) + 29 and data[-37:-28] == _FOOTER_HEAD
+                     and data[-8:] == MAGIC)
     schemas: dict[int, tuple[str, str]] = {}
     position = len(MAGIC)
     scan.stopped_at, scan.reason = len(data), ""
     for op, body, end, record_start in _records(data, position):
         position = end
-        index: dict[int, list[tuple[int, int]]] = defaultdict(list)  # of a chunk: channel -> (time, offset)
+        index: dict[int, list[tuple[int, int]]] = defaultdict(list)  # of a chunk, as last_index
         try:
             inner = [(op, body, end, record_start, data)]
             if op == 0x01:
@@ -124,7 +131,8 @@ def _walk_data(data: mmap.mmap, scan: SalvageScan, want_messages: bool) -> Itera
                     encoding, p = _string(buf, p)
                     metadata, _ = _string_map(buf, p)
                     name, definition = schemas.get(sid, ("", ""))
-                    scan.channels.setdefault(cid, SalvagedChannel(topic, name, definition, metadata, encoding))
+                    channel = SalvagedChannel(topic, name, definition, metadata, encoding)
+                    scan.channels.setdefault(cid, channel)
                     scan.channel_records.setdefault(cid, bytes(buf[istart:ie]))
                 elif iop == 0x05:
                     cid, _, log_time = struct.unpack_from("<HIQ", buf, ib)
@@ -135,11 +143,13 @@ def _walk_data(data: mmap.mmap, scan: SalvageScan, want_messages: bool) -> Itera
                     if want_messages:
                         yield cid, log_time, bytes(buf[ib + 22 : ie])
         except (struct.error, UnicodeDecodeError, ReaderError, ValueError) as exc:
-            scan.stopped_at, scan.reason = record_start, f"record at byte {record_start} does not decode: {exc}"
+            scan.stopped_at = record_start
+            scan.reason = f"record at byte {record_start} does not decode: {exc}"
             return
         if op == 0x06:
-            scan.chunks.append(Chunk(record_start, end, end - record_start, {}, compressed_size, size, start_ns, end_ns,
-                                     {c: len(e) for c, e in index.items()}, compression))
+            counts = {c: len(e) for c, e in index.items()}
+            scan.chunks.append(Chunk(record_start, end, end - record_start, {}, compressed_size,
+                                     size, start_ns, end_ns, counts, compression))
             scan.last_index = dict(index)
         if op == 0x0F:  # data end: the summary follows
             scan.stopped_at = len(data)
@@ -171,7 +181,7 @@ def finish(path: Path, scanned: SalvageScan, metadata_text: str) -> int:
     if not scanned.header_end:
         raise ValueError(f"{path}: no MCAP header ({scanned.reason})")
     chunks, tail = scanned.chunks, b""
-    end = chunks[-1].end if chunks else scanned.header_end  # after the last complete chunk and its indexes
+    end = chunks[-1].end if chunks else scanned.header_end  # after the last chunk and its indexes
     if chunks and set(chunks[-1].index_offsets) != set(chunks[-1].channel_counts):
         last = chunks[-1]
         end = last.start + last.chunk_length
@@ -181,7 +191,8 @@ def finish(path: Path, scanned: SalvageScan, metadata_text: str) -> int:
         size = f.seek(0, 2)
         f.truncate(end)
         f.seek(end)
-        f.write(tail + summary(end + len(tail), [scanned.schema_records[k] for k in sorted(scanned.schema_records)],
-                               [scanned.channel_records[k] for k in sorted(scanned.channel_records)],
-                               sorted(scanned.channel_records), chunks, metadata_text))
+        schemas = [scanned.schema_records[k] for k in sorted(scanned.schema_records)]
+        channels = [scanned.channel_records[k] for k in sorted(scanned.channel_records)]
+        f.write(tail + summary(end + len(tail), schemas, channels, sorted(scanned.channel_records),
+                               chunks, metadata_text))
     return size - end

@@ -103,8 +103,9 @@ class BagSource:
             scan = salvage.scan(path)
             kept = sum(scan.counts.values())
             bag = self.path if self.path.is_dir() else path.parent
-            self._report(f"{path}: damaged ({exc}); {scan.reason}: playing the {kept} message(s) before byte "
-                         f"{scan.stopped_at} (`actaim2 bag-reindex {bag}` finishes the file if its recorder died)")
+            self._report(f"{path}: damaged ({exc}); {scan.reason}: playing the {kept} message(s) "
+                         f"before byte {scan.stopped_at} (`actaim2 bag-reindex {bag}` finishes "
+                         "the file if its recorder died)")
             if scan.start_ns is not None:
                 self._starts.append(scan.start_ns)
             for cid, channel in scan.channels.items():

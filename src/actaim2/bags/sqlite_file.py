@@ -51,7 +51,7 @@ class SqliteFile:
         self._committed, self._committed_counts = FileStats(path.name), defaultdict(int)
         self._batch: list[tuple[int, int, bytes]] = []
         self._pending_bytes = 0
-        self.pending_since: float | None = None  # time.monotonic() of the oldest uncommitted message
+        self.pending_since: float | None = None  # time.monotonic(): oldest uncommitted message
 
     def add_topic(self, topic_id: int, spec: TopicSpec) -> None:
         self.flush()
@@ -139,17 +139,21 @@ def read(path: Path) -> SqliteContents:
     that a rollback journal left by a process that died is rolled back first."""
     conn = sqlite3.connect(path)
     try:
-        definitions = dict(conn.execute("SELECT topic_type, encoded_message_definition FROM message_definitions"))
+        definitions = dict(
+            conn.execute("SELECT topic_type, encoded_message_definition FROM message_definitions")
+        )
         topics = {
-            row[0]: TopicSpec(row[1], row[2], definitions.get(row[2], ""), row[5], qos_from_text(row[4]), row[3])
+            row[0]: TopicSpec(row[1], row[2], definitions.get(row[2], ""), row[5],
+                              qos_from_text(row[4]), row[3])
             for row in conn.execute(
-                "SELECT id, name, type, serialization_format, offered_qos_profiles, type_description_hash"
-                " FROM topics ORDER BY id"
+                "SELECT id, name, type, serialization_format, offered_qos_profiles,"
+                " type_description_hash FROM topics ORDER BY id"
             )
         }
         stats, counts = FileStats(path.name), {}
         for topic_id, count, first, last in conn.execute(
-            "SELECT topic_id, COUNT(*), MIN(timestamp), MAX(timestamp) FROM messages GROUP BY topic_id"
+            "SELECT topic_id, COUNT(*), MIN(timestamp), MAX(timestamp) FROM messages"
+            " GROUP BY topic_id"
         ):
             counts[topic_id] = count
             stats.add(first)

@@ -3,9 +3,9 @@
 Files are named like ``ros2 bag record`` names them, ``<bag>/<bag>_<n>.mcap`` (or ``.db3``).
 metadata.yaml is (re)written whenever a file is finished, so a recording that dies later still
 describes its finished files; each MCAP file also carries the metadata in its summary. What the
-current file holds reaches the disk by size (``chunk_size``) and, through :meth:`BagWriter.flush_aged`,
-by age (``max_chunk_age``); after a process dies, ``actaim2 bag-reindex`` (actaim2.bags.reindex)
-finishes the file and rewrites metadata.yaml.
+current file holds reaches the disk by size (``chunk_size``) and, through
+:meth:`BagWriter.flush_aged`, by age (``max_chunk_age``); after a process dies, ``actaim2
+bag-reindex`` (actaim2.bags.reindex) finishes the file and rewrites metadata.yaml.
 
 Use from one thread (the recorder's writer thread). A write error (a full disk, a vanished
 directory) raises out of :meth:`BagWriter.write`; :meth:`BagWriter.recover` then finishes the
