@@ -18,6 +18,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from actaim2.bags.definitions import MessageDefinitions
 from actaim2.bags.metadata import TopicSpec
+from actaim2.bags.writer import BagWriter
 from harness import REPO
 
 REFERENCE = REPO.parent / "shared" / "bags-reference"
@@ -32,6 +33,7 @@ SERVICE_EVENT_TOPICS = ("/test_service1/_service_event", "/test_service2/_servic
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 DEFINITIONS = MessageDefinitions(os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep))
 _INFINITE = QosTime(9223372036, 854775807)
+T0 = 1_700_000_000 * 10**9  # the first timestamp of the bags written here
 
 
 def offered(reliable: bool = True, latched: bool = False) -> list[Qos]:
@@ -73,6 +75,25 @@ def tf_static(child: str) -> bytes:
         T["geometry_msgs/msg/Transform"](T["geometry_msgs/msg/Vector3"](1.0, 2.0, 3.0),
                                          T["geometry_msgs/msg/Quaternion"](0.0, 0.0, 0.0, 1.0)))
     return bytes(TYPESTORE.serialize_cdr(T["tf2_msgs/msg/TFMessage"]([transform]), "tf2_msgs/msg/TFMessage"))
+
+
+def write_bag(path: Path, storage: str = "mcap", compression: str = "lz4", frames: int = 40,
+              cloud_every: int = 10, cloud_size: tuple[int, int] = (64, 48),
+              **kwargs) -> dict[str, int]:
+    """Joint states at 100 Hz, a cloud every ``cloud_every``-th, one latched /tf_static, written
+    by a BagWriter(``kwargs``) and closed; returns the messages per topic."""
+    writer = BagWriter(path, storage, compression, **kwargs)
+    js = writer.add_topic(spec("/joint_states", "sensor_msgs/msg/JointState"))
+    pc = writer.add_topic(spec("/points2", "sensor_msgs/msg/PointCloud2", reliable=False))
+    tf = writer.add_topic(spec("/tf_static", "tf2_msgs/msg/TFMessage", latched=True))
+    writer.write(tf, T0, tf_static("camera_base"))
+    for i in range(frames):
+        writer.write(js, T0 + i * 10**7 + 1, joint_state(i))
+        if i % cloud_every == 0:
+            writer.write(pc, T0 + i * 10**7 + 2, cloud(i, *cloud_size))
+    writer.close()
+    clouds = (frames + cloud_every - 1) // cloud_every
+    return {"/joint_states": frames, "/points2": clouds, "/tf_static": 1}
 
 
 def read_anyreader(path: Path) -> dict[str, list]:

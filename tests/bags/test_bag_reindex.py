@@ -7,8 +7,9 @@ import hashlib
 import shutil
 import time
 
+import bagtools
 import pytest
-from bagtools import cloud, joint_state, read_anyreader, read_mcap_package, spec, tf_static
+from bagtools import T0, joint_state, read_anyreader, read_mcap_package, spec
 
 from actaim2.bags import salvage
 from actaim2.bags.recorder import Recorder
@@ -18,22 +19,13 @@ from actaim2.bags.writer import BagWriter
 from actaim2.finetune.bag_episodes import BagProblem, read_episodes
 from harness import wait_for
 
-T0 = 1_700_000_000 * 10**9
 
-
-def write_bag(path, storage="mcap", frames=120, **kwargs):
-    """Joint states at 100 Hz, a cloud every 30th, one latched /tf_static."""
-    writer = BagWriter(path, storage, "lz4" if storage == "mcap" else "none", **kwargs)
-    js = writer.add_topic(spec("/joint_states", "sensor_msgs/msg/JointState"))
-    pc = writer.add_topic(spec("/points2", "sensor_msgs/msg/PointCloud2", reliable=False))
-    tf = writer.add_topic(spec("/tf_static", "tf2_msgs/msg/TFMessage", latched=True))
-    writer.write(tf, T0, tf_static("camera_base"))
-    for i in range(frames):
-        writer.write(js, T0 + i * 10**7 + 1, joint_state(i))
-        if i % 30 == 0:
-            writer.write(pc, T0 + i * 10**7 + 2, cloud(i, 16, 12))
-    writer.close()
-    return writer.files
+def write_files(path, storage="mcap", **kwargs):
+    """120 joint states, 4 small clouds, a /tf_static; the storage files, in split order."""
+    bagtools.write_bag(path, storage, "lz4" if storage == "mcap" else "none", frames=120,
+                       cloud_every=30, cloud_size=(16, 12), **kwargs)
+    files = [p for p in path.iterdir() if p.suffix in (".mcap", ".db3")]
+    return sorted(files, key=lambda p: int(p.stem.rsplit("_", 1)[1]))
 
 
 def digests(bag):
@@ -44,7 +36,7 @@ def digests(bag):
 @pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
 def test_a_closed_split_bag_gets_the_writers_metadata_yaml_back_byte_for_byte(tmp_path, storage):
     bag = tmp_path / "bag"
-    files = write_bag(bag, storage, max_file_size=6_000, chunk_size=2048)
+    files = write_files(bag, storage, max_file_size=6_000, chunk_size=2048)
     assert len(files) >= 3
     written, before = (bag / "metadata.yaml").read_text(), digests(bag)
     (bag / "metadata.yaml").unlink()
@@ -69,7 +61,7 @@ def cut_points(mcap):
 
 
 def test_an_mcap_file_cut_anywhere_keeps_every_complete_chunk_for_both_readers(tmp_path):
-    (mcap,) = write_bag(tmp_path / "closed", chunk_size=2048)
+    (mcap,) = write_files(tmp_path / "closed", chunk_size=2048)
     data = mcap.read_bytes()
     chunks, points = cut_points(mcap)
     assert len(chunks) >= 6
@@ -115,7 +107,7 @@ def test_the_writer_thread_puts_old_messages_on_disk_without_waiting_for_more(tm
 
 def test_a_bag_without_metadata_yaml_is_refused_with_the_command_that_rebuilds_it(tmp_path):
     bag = tmp_path / "bag"
-    write_bag(bag)
+    write_files(bag)
     (bag / "metadata.yaml").unlink()
     advice = f"`actaim2 bag-reindex {bag}`"
     with pytest.raises(FileNotFoundError, match=f"metadata.yaml is missing .*{advice}"):
@@ -129,7 +121,7 @@ def test_a_bag_without_metadata_yaml_is_refused_with_the_command_that_rebuilds_i
 
 def test_a_killed_recording_plays_before_reindexing_and_says_how_to_finish_it(tmp_path):
     bag = tmp_path / "bag"
-    (mcap,) = write_bag(tmp_path / "closed", chunk_size=2048)
+    (mcap,) = write_files(tmp_path / "closed", chunk_size=2048)
     shutil.copytree(tmp_path / "closed", bag)
     chunks = salvage.scan(mcap).chunks
     (bag / mcap.name).write_bytes(mcap.read_bytes()[: chunks[3].end])
