@@ -9,6 +9,7 @@ import time
 
 import bagtools
 import pytest
+import yaml
 from bagtools import T0, joint_state, read_anyreader, read_mcap_package, spec
 
 from actaim2.bags import salvage
@@ -130,3 +131,19 @@ def test_a_killed_recording_plays_before_reindexing_and_says_how_to_finish_it(tm
     kept = sum(sum(c.channel_counts.values()) for c in chunks[:4])
     assert len(list(source.messages({"/joint_states", "/points2", "/tf_static"}))) == kept
     assert any(f"`actaim2 bag-reindex {bag}` finishes the file" in r for r in reports), reports
+
+
+def test_a_split_recording_killed_in_its_last_file_plays_the_rest_and_names_the_fix(tmp_path):
+    bag = tmp_path / "bag"
+    files = write_files(bag, max_file_size=6_000, chunk_size=2048)
+    info = yaml.safe_load((bag / "metadata.yaml").read_text())
+    info["rosbag2_bagfile_information"]["relative_file_paths"].pop()  # what the writer had written
+    (bag / "metadata.yaml").write_text(yaml.safe_dump(info))
+    reports = []
+    BagSource(bag, reports.append)
+    assert reports == [f"{files[-1]}: not listed in metadata.yaml; skipped "
+                       f"(`actaim2 bag-reindex {bag}` adds it)"]
+    reindex(bag, print)
+    reports.clear()
+    played = BagSource(bag, reports.append).messages({"/joint_states", "/points2", "/tf_static"})
+    assert len(list(played)) == 1 + 120 + 4 and reports == []

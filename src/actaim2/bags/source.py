@@ -9,11 +9,11 @@ message index it concerns, and only that part is skipped:
   among that topic's messages, 0-based);
 * a storage file that rosbags cannot open: an MCAP file that ends early is read up to the
   damage (:mod:`actaim2.bags.salvage`); any other such file is skipped;
-* a storage file listed in metadata.yaml but missing (skipped).
+* a storage file listed in metadata.yaml but missing, or there but not listed (skipped);
+* an error in the middle of a file: the rest of that file is skipped.
 
 A bag directory without a readable metadata.yaml is refused with the command that rebuilds it
 (``actaim2 bag-reindex``, :mod:`actaim2.bags.reindex`).
-* an error in the middle of a file: the rest of that file is skipped.
 
 Files are read one at a time, in the order of metadata.yaml (split bags are sequential), each
 in timestamp order. A path may also name a single .mcap or .db3 file.
@@ -31,6 +31,7 @@ from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_
 
 from actaim2.bags import salvage
 from actaim2.bags.metadata import qos_from_text
+from actaim2.bags.reindex import STORAGE_OF_SUFFIX
 
 
 @dataclass
@@ -88,6 +89,10 @@ class BagSource:
         missing = [p for p in paths if not p.exists()]
         for p in missing:
             self._report(f"{p}: listed in metadata.yaml but missing; skipped")
+        for p in sorted(set(self.path.iterdir()) - set(paths)):
+            if p.suffix in STORAGE_OF_SUFFIX:  # a split recording's file when its recorder died
+                self._report(f"{p}: not listed in metadata.yaml; skipped (`actaim2 bag-reindex "
+                             f"{self.path}` adds it)")
         return [p for p in paths if p.exists()]
 
     def _open_file(self, path: Path) -> _File:
