@@ -12,7 +12,9 @@ type's .msg definition as rosbag2 stores it, and the publisher's type hash. DDS 
 best-effort topics come from the message-lost event and are reported with the queue drops at
 the end. Ctrl-C or SIGTERM: everything queued is written, the bag is closed, the summary
 logged. A write error (full disk) stops the recording with its reason, keeps the bag readable,
-and exits with code 1.
+and exits with code 1. A recorder that dies (SIGKILL, out of memory) keeps what it received up
+to ``max_chunk_age`` before (chunks go to disk by age as well as by size); ``actaim2
+bag-reindex`` then finishes the bag.
 
 With ``split_by_episode`` every START on the episode topic opens a new bag
 ``<output>/episode_<n>`` and the matching END closes it; latched topics (/tf_static) are
@@ -43,7 +45,9 @@ from actaim2.bags.definitions import MessageDefinitions, UnknownMessageType
 from actaim2.bags.metadata import TopicSpec
 from actaim2.bags.qos import record_choice
 from actaim2.bags.recorder import Recorder, RecordSummary, unique_path
-from actaim2.bags.writer import COMPRESSIONS, DEFAULT_CHUNK_SIZE, STORAGES, BagWriter
+from actaim2.bags.writer import (
+    COMPRESSIONS, DEFAULT_CHUNK_SIZE, DEFAULT_MAX_CHUNK_AGE, STORAGES, BagWriter,
+)
 from actaim2.ros_main import spin_until
 from actaim2.ros_params import declare_parameters
 from actaim2_policy.ros_bags import bag_qos, install_prefixes, message_class, rclpy_qos
@@ -59,6 +63,12 @@ PARAMETERS = {
     "storage": ("mcap", f"storage format: {' | '.join(STORAGES)}"),
     "compression": ("lz4", f"MCAP chunk compression: {' | '.join(COMPRESSIONS)} (sqlite3: none)"),
     "chunk_size": (DEFAULT_CHUNK_SIZE, "bytes: an MCAP chunk is compressed and written once it holds this much"),
+    "max_chunk_age": (
+        DEFAULT_MAX_CHUNK_AGE,
+        "s: an MCAP chunk (sqlite3: the uncommitted messages) is also written once its oldest "
+        "message has waited this long, so a recorder that dies loses at most that much; "
+        "0 = by size only",
+    ),
     "max_bag_size": (0, "bytes: start a new storage file when the current one reaches this size; 0 = never"),
     "max_bag_duration": (0.0, "s: start a new storage file when the current one spans this long; 0 = never"),
     "split_by_episode": (False, "one bag per episode: START on episode_topic opens it, END closes it"),
@@ -87,6 +97,7 @@ class BagRecorder(Node):
             self.get_logger().warning(f"compression '{self._compression}' applies to MCAP chunks only: sqlite3 is written uncompressed")
             self._compression = "none"
         self._chunk_size, self._max_size = int(p["chunk_size"]), int(p["max_bag_size"])
+        self._max_chunk_age = float(p["max_chunk_age"])
         self._max_duration_ns = int(float(p["max_bag_duration"]) * 1e9)
         self._episodes = bool(p["split_by_episode"])
         self._episode_topic = str(p["episode_topic"])
@@ -120,7 +131,8 @@ class BagRecorder(Node):
     # --- bags -------------------------------------------------------------------------------
     def _make_writer(self, name: str) -> BagWriter:
         path = unique_path(self._output / name) if self._episodes else self._output
-        return BagWriter(path, self._storage, self._compression, self._chunk_size, self._max_size, self._max_duration_ns)
+        return BagWriter(path, self._storage, self._compression, self._chunk_size, self._max_size,
+                         self._max_duration_ns, max_chunk_age=self._max_chunk_age)
 
     def _on_write_error(self, reason: str) -> None:
         self.get_logger().error(f"recording stopped: {reason}; what reached the disk stays readable")

@@ -29,6 +29,8 @@ COMMANDS: dict[tuple[str, ...], tuple[str, str]] = {
     ("eval-compare",): ("actaim2.eval.compare_cli", "two evaluation runs of the same samples, paired: SSRs, discordant samples, exact McNemar p"),
     ("eval-standin",): ("actaim2.eval.standin_cli", "the three-drawer stand-in: push / pull success before and after fine-tuning, per cluster"),
     ("parity",): ("actaim2.eval.parity_cli", "the ROS loop against the library evaluation on 20 fixed (object, seed, cluster) tuples"),
+    ("bag-reindex",): ("actaim2.bags.reindex",
+                       "finish the files of a bag whose recorder died, rebuild its metadata.yaml"),
     ("bag2dataset",): ("actaim2.finetune.bag2dataset_cli", "recorded teleop bags -> a training dataset (keyframes, views, embeddings, labels)"),
     ("finetune",): ("actaim2.finetune.finetune_cli", "fine-tune a checkpoint's selector and predictor on demonstrations"),
     ("export-lerobot",): ("actaim2.export.lerobot_cli", "a stored dataset as a LeRobot dataset (format v2.1)"),

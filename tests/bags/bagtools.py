@@ -1,6 +1,7 @@
 """Helpers of the bag tests: messages serialized by rosbags (exact CDR; rclpy's serialize_message
 appends stray padding bytes that strict readers refuse), topic specs from the installed
-definitions, a disk that fills up, and the Jazzy reference bags (../shared/bags-reference)."""
+definitions, the two readers we did not write, a disk that fills up, and the Jazzy reference
+bags (../shared/bags-reference)."""
 from __future__ import annotations
 
 import errno
@@ -9,11 +10,15 @@ import os
 from pathlib import Path
 
 import numpy as np
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+from rosbags.highlevel import AnyReader
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.typesys import Stores, get_typestore
 
 from actaim2.bags.definitions import MessageDefinitions
 from actaim2.bags.metadata import TopicSpec
+from actaim2.bags.writer import BagWriter
 from harness import REPO
 
 REFERENCE = REPO.parent / "shared" / "bags-reference"
@@ -28,6 +33,7 @@ SERVICE_EVENT_TOPICS = ("/test_service1/_service_event", "/test_service2/_servic
 TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
 DEFINITIONS = MessageDefinitions(os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep))
 _INFINITE = QosTime(9223372036, 854775807)
+T0 = 1_700_000_000 * 10**9  # the first timestamp of the bags written here
 
 
 def offered(reliable: bool = True, latched: bool = False) -> list[Qos]:
@@ -69,6 +75,46 @@ def tf_static(child: str) -> bytes:
         T["geometry_msgs/msg/Transform"](T["geometry_msgs/msg/Vector3"](1.0, 2.0, 3.0),
                                          T["geometry_msgs/msg/Quaternion"](0.0, 0.0, 0.0, 1.0)))
     return bytes(TYPESTORE.serialize_cdr(T["tf2_msgs/msg/TFMessage"]([transform]), "tf2_msgs/msg/TFMessage"))
+
+
+def write_bag(path: Path, storage: str = "mcap", compression: str = "lz4", frames: int = 40,
+              cloud_every: int = 10, cloud_size: tuple[int, int] = (64, 48),
+              **kwargs) -> dict[str, int]:
+    """Joint states at 100 Hz, a cloud every ``cloud_every``-th, one latched /tf_static, written
+    by a BagWriter(``kwargs``) and closed; returns the messages per topic."""
+    writer = BagWriter(path, storage, compression, **kwargs)
+    js = writer.add_topic(spec("/joint_states", "sensor_msgs/msg/JointState"))
+    pc = writer.add_topic(spec("/points2", "sensor_msgs/msg/PointCloud2", reliable=False))
+    tf = writer.add_topic(spec("/tf_static", "tf2_msgs/msg/TFMessage", latched=True))
+    writer.write(tf, T0, tf_static("camera_base"))
+    for i in range(frames):
+        writer.write(js, T0 + i * 10**7 + 1, joint_state(i))
+        if i % cloud_every == 0:
+            writer.write(pc, T0 + i * 10**7 + 2, cloud(i, *cloud_size))
+    writer.close()
+    clouds = (frames + cloud_every - 1) // cloud_every
+    return {"/joint_states": frames, "/points2": clouds, "/tf_static": 1}
+
+
+def read_anyreader(path: Path) -> dict[str, list]:
+    """topic -> [(timestamp, message)] as rosbags' AnyReader reads the bag (or file) ``path``."""
+    out = {}
+    with AnyReader([path], default_typestore=TYPESTORE) as reader:
+        for connection, timestamp, raw in reader.messages():
+            message = reader.deserialize(raw, connection.msgtype)
+            out.setdefault(connection.topic, []).append((timestamp, message))
+    return out
+
+
+def read_mcap_package(path: Path) -> dict[str, list]:
+    """topic -> [(log time, message)] as the mcap package decodes bag ``path``'s .mcap files."""
+    out = {}
+    for file in sorted(path.glob("*.mcap")):
+        with open(file, "rb") as f:
+            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            for _, channel, message, decoded in reader.iter_decoded_messages():
+                out.setdefault(channel.topic, []).append((message.log_time, decoded))
+    return out
 
 
 class FullDisk(io.RawIOBase):

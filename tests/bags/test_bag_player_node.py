@@ -116,3 +116,13 @@ def test_player_skips_what_it_cannot_play_in_a_rosbag2_test_bag(start_node, tmp_
         assert "topic /test_topic1: unknown message type test_msgs/msg/Strings" in log
     if importlib.util.find_spec("rosbag2_interfaces") is None:
         assert "topic /events/write_split: unknown message type rosbag2_interfaces/msg/WriteSplitEvent" in log
+
+
+def test_player_refuses_a_bag_without_metadata_yaml_and_names_the_command(start_node, tmp_path):
+    write_test_bag(tmp_path / "bag")
+    (tmp_path / "bag" / "metadata.yaml").unlink()  # as after a copy that left it behind
+    player = start_node("actaim2_policy", "bag_player", {"bag": str(tmp_path / "bag")})
+    assert player.proc.wait(timeout=30) == 1, player.output()
+    log = player.output()
+    assert "metadata.yaml is missing" in log and f"`actaim2 bag-reindex {tmp_path / 'bag'}`" in log
+    assert "Traceback" not in log

@@ -4,6 +4,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+import subprocess
 import time
 
 import numpy as np
@@ -157,6 +158,49 @@ def test_one_bag_per_episode_with_its_own_tf_static_and_the_keypose_received_jus
         assert messages["/tf_static"][0].transforms[0].child_frame_id == "panda_link0"
     assert sorted(p.name for p in (tmp_path / "episodes").iterdir()) == ["episode_0001", "episode_0002"]
     assert "outside episodes 15" in recorder.output()
+
+
+PANDA_ARM = [f"panda_joint{i}" for i in range(1, 8)]
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_after_sigkill_and_reindex_both_readers_read_every_message_older_than_1_5_s(
+        ros_node, start_node, tmp_path, storage):
+    """A new user's experiment: /joint_states (7 joints, 236 bytes: 10 s fit in one 768 kB
+    chunk) at 200 Hz for 10 s, the recorder killed with SIGKILL, `actaim2 bag-reindex`, then
+    rosbags and (MCAP) the mcap package read the bag."""
+    js_pub = ros_node.create_publisher(JointState, "/joint_states", 10)
+    bag = tmp_path / "bag"
+    recorder = start_node("actaim2_policy", "bag_recorder", {
+        "output": str(bag), "storage": storage,
+        "compression": "lz4" if storage == "mcap" else "none",
+        "topics": ["/joint_states"], "topic_patterns": [""], "discovery_period": 0.2,
+    })
+    wait_subscribed(recorder, "/joint_states")
+    assert wait_for(lambda: js_pub.get_subscription_count() > 0, 10.0)
+    published = []  # time.monotonic() of each publish
+    start = time.monotonic()
+    for i in range(2000):
+        time.sleep(max(0.0, start + i / 200 - time.monotonic()))
+        js_pub.publish(JointState(name=PANDA_ARM, position=[float(i)] * 7))
+        published.append(time.monotonic())
+    os.killpg(recorder.proc.pid, signal.SIGKILL)
+    killed = time.monotonic()
+    recorder.proc.wait(timeout=10)
+    older = sum(t < killed - 1.5 for t in published)
+
+    reindex = subprocess.run(["actaim2", "bag-reindex", str(bag)], capture_output=True, text=True,
+                             timeout=60)
+    assert reindex.returncode == 0, reindex.stdout + reindex.stderr
+    positions = [m.position[0] for m in read(bag).get("/joint_states", [])]  # rosbags
+    assert positions == list(range(len(positions))), positions[:10]
+    assert len(positions) >= older, (len(positions), older)
+    assert topics_of(bag)["/joint_states"]["message_count"] == len(positions)
+    if storage == "mcap":  # the mcap package reads the same messages
+        with open(bag / "bag_0.mcap", "rb") as f:
+            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            assert [m.position[0] for _, _, _, m in reader.iter_decoded_messages()] == positions
+    print(f"{storage}: {len(positions)} of 2000 kept, {older} older than 1.5 s; {reindex.stdout}")
 
 
 @pytest.mark.parametrize("params, message", [

@@ -8,48 +8,16 @@ import threading
 import numpy as np
 import pytest
 import yaml
-from bagtools import TYPESTORE, FullDisk, cloud, joint_state, spec, tf_static
+from bagtools import (
+    T0, TYPESTORE, FullDisk, cloud, joint_state, read_anyreader, read_mcap_package, spec,
+    tf_static, write_bag,
+)
 from mcap.reader import make_reader
-from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 
 from actaim2.bags import salvage
 from actaim2.bags.recorder import Recorder
 from actaim2.bags.writer import BagWriter
-
-T0 = 1_700_000_000 * 10**9
-
-
-def write_bag(path, storage="mcap", compression="lz4", frames=40, **kwargs):
-    """40 joint states at 100 Hz, a cloud every 10th, one latched /tf_static."""
-    writer = BagWriter(path, storage, compression, **kwargs)
-    js = writer.add_topic(spec("/joint_states", "sensor_msgs/msg/JointState"))
-    pc = writer.add_topic(spec("/points2", "sensor_msgs/msg/PointCloud2", reliable=False))
-    tf = writer.add_topic(spec("/tf_static", "tf2_msgs/msg/TFMessage", latched=True))
-    writer.write(tf, T0, tf_static("camera_base"))
-    for i in range(frames):
-        writer.write(js, T0 + i * 10**7 + 1, joint_state(i))
-        if i % 10 == 0:
-            writer.write(pc, T0 + i * 10**7 + 2, cloud(i))
-    writer.close()
-    return {"/joint_states": frames, "/points2": (frames + 9) // 10, "/tf_static": 1}
-
-
-def read_anyreader(path):
-    out = {}
-    with AnyReader([path], default_typestore=TYPESTORE) as reader:
-        for connection, timestamp, raw in reader.messages():
-            out.setdefault(connection.topic, []).append((timestamp, reader.deserialize(raw, connection.msgtype)))
-    return out
-
-
-def read_mcap_package(path):
-    out = {}
-    for file in sorted(path.glob("*.mcap")):
-        with open(file, "rb") as f:
-            for schema, channel, message, decoded in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages():
-                out.setdefault(channel.topic, []).append((message.log_time, decoded))
-    return out
 
 
 def check_content(messages, expected):

@@ -10,7 +10,13 @@ indexes and the ``rosbag2`` metadata record) and adds:
 * ``readable`` statistics that count only messages whose chunk is completely on disk;
 * :meth:`McapFile.recover`: after ENOSPC or any other write error, cut the file back to the end
   of the last complete chunk and write the summary there, so every reader opens what was saved.
-  If even the summary does not fit, the newest chunks are given up one by one until it does.
+  If even the summary does not fit, the newest chunks are given up one by one until it does;
+* chunks written by age as well as by size (:meth:`McapFile.flush` whenever the caller decides:
+  the recorder does once the oldest pending message has waited ``max_chunk_age``), so that a
+  process that dies takes at most that much with it.
+
+:func:`summary` and :func:`message_indexes` also finish a file whose writer died
+(:func:`actaim2.bags.salvage.finish`).
 
 The file is opened unbuffered, and every record group goes out in one ``write``: a failed
 write leaves at most one incomplete record group behind ``_good_end``.
@@ -18,6 +24,7 @@ write leaves at most one incomplete record group behind ``_good_end``.
 from __future__ import annotations
 
 import struct
+import time
 from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -58,18 +65,19 @@ def _string_map(entries: dict[str, str]) -> bytes:
 
 
 @dataclass
-class _Chunk:
+class Chunk:
     """A chunk on disk: where, what it holds, and the time range of its messages."""
 
     start: int
     end: int  # end of the chunk record and its message indexes
     chunk_length: int
-    index_offsets: dict[int, int]
+    index_offsets: dict[int, int]  # channel id -> file offset of its message index record
     compressed_size: int
     uncompressed_size: int
     start_ns: int
     end_ns: int
     channel_counts: dict[int, int]
+    compression: str  # "" (none), "lz4" or "zstd", as the chunk record names it
 
 
 @dataclass
@@ -79,9 +87,12 @@ class _Pending:
     start_ns: int = 2**63 - 1
     end_ns: int = 0
     index: dict[int, list[tuple[int, int]]] = field(default_factory=lambda: defaultdict(list))
+    since: float | None = None  # time.monotonic() when its first message was added
 
     def add(self, record: bytes, channel: int | None = None, timestamp: int = 0) -> None:
         if channel is not None:
+            if self.since is None:
+                self.since = time.monotonic()
             self.index[channel].append((timestamp, self.size))
             self.start_ns = min(self.start_ns, timestamp)
             self.end_ns = max(self.end_ns, timestamp)
@@ -118,7 +129,7 @@ class McapFile:
         self._channel_records: list[bytes] = []
         self._channels: dict[int, str] = {}  # channel id -> msgtype
         self._pending = _Pending()
-        self._chunks: list[_Chunk] = []
+        self._chunks: list[Chunk] = []
         self._write(MAGIC + _record(_OP_HEADER, _string("ros2") + _string(library)))
         self._header_end = self._good_end = self._bio.tell()
 
@@ -169,19 +180,21 @@ class McapFile:
         )
         chunk_head = struct.pack("<BQ", _OP_CHUNK, len(chunk_body) + len(compressed)) + chunk_body
         chunk_length = len(chunk_head) + len(compressed)
-        indexes, offsets, position = [], {}, start + chunk_length
-        for channel, entries in sorted(pending.index.items()):
-            body = struct.pack("<HI", channel, 16 * len(entries)) + b"".join(struct.pack("<QQ", t, o) for t, o in entries)
-            offsets[channel] = position
-            indexes.append(_record(_OP_MESSAGE_INDEX, body))
-            position += len(indexes[-1])
-        self._write(chunk_head, compressed, *indexes)
+        indexes, offsets = message_indexes(start + chunk_length, pending.index)
+        self._write(chunk_head, compressed, indexes)
+        position = start + chunk_length + len(indexes)
         self._chunks.append(
-            _Chunk(start, position, chunk_length, offsets, len(compressed), len(raw), pending.start_ns, pending.end_ns,
-                   {c: len(e) for c, e in pending.index.items()})
+            Chunk(start, position, chunk_length, offsets, len(compressed), len(raw),
+                  pending.start_ns, pending.end_ns, {c: len(e) for c, e in pending.index.items()},
+                  self.compression)
         )
         self._good_end = position
         self._pending = _Pending()
+
+    @property
+    def pending_since(self) -> float | None:
+        """time.monotonic() when the oldest message not on disk yet was written; None: none is."""
+        return self._pending.since
 
     @property
     def size(self) -> int:
@@ -190,14 +203,7 @@ class McapFile:
 
     def stats(self) -> tuple[FileStats, dict[int, int]]:
         """Messages that are completely on disk: file statistics and count per topic id."""
-        stats, counts = FileStats(self.path.name), defaultdict(int)
-        for chunk in self._chunks:
-            if chunk.channel_counts:
-                stats.add(chunk.start_ns)
-                stats.add(chunk.end_ns, sum(chunk.channel_counts.values()) - 1)
-            for channel, count in chunk.channel_counts.items():
-                counts[channel] += count
-        return stats, dict(counts)
+        return chunk_stats(self.path.name, self._chunks)
 
     def close(self) -> None:
         """Flush, then write the summary and footer."""
@@ -239,44 +245,93 @@ class McapFile:
 
     def _write_summary(self) -> None:
         stats, counts = self.stats()
-        metadata_text = self._describe(stats, counts)
-        data_end = _record(_OP_DATA_END, struct.pack("<I", 0))
-        metadata_record = _record(_OP_METADATA, _string("rosbag2") + _string_map({"serialized_metadata": metadata_text}))
-        metadata_start = self._good_end
-        summary_start = metadata_start + len(metadata_record) + len(data_end)
-        schemas = b"".join(self._schema_records)
-        channels = b"".join(self._channel_records)
-        chunk_indexes = b"".join(
-            _record(
-                _OP_CHUNK_INDEX,
-                struct.pack("<QQQQ", c.start_ns if c.channel_counts else 0, c.end_ns, c.start, c.chunk_length)
-                + struct.pack("<I", 10 * len(c.index_offsets))
-                + b"".join(struct.pack("<HQ", ch, off) for ch, off in sorted(c.index_offsets.items()))
-                + struct.pack("<Q", c.end - c.start - c.chunk_length)
-                + _string(self.compression)
-                + struct.pack("<QQ", c.compressed_size, c.uncompressed_size),
+        self._write(summary(self._good_end, self._schema_records, self._channel_records,
+                            sorted(self._channels), self._chunks, self._describe(stats, counts)))
+
+
+def message_indexes(
+    position: int, index: dict[int, list[tuple[int, int]]]
+) -> tuple[bytes, dict[int, int]]:
+    """The message index records of one chunk, written at ``position`` (right after the chunk),
+    from ``index`` (channel id -> (log time, offset in the uncompressed chunk) of each message);
+    and the file offset of each channel's record."""
+    records, offsets = [], {}
+    for channel, entries in sorted(index.items()):
+        body = struct.pack("<HI", channel, 16 * len(entries))
+        body += b"".join(struct.pack("<QQ", t, o) for t, o in entries)
+        offsets[channel] = position + sum(len(r) for r in records)
+        records.append(_record(_OP_MESSAGE_INDEX, body))
+    return b"".join(records), offsets
+
+
+def chunk_stats(name: str, chunks: list[Chunk]) -> tuple[FileStats, dict[int, int]]:
+    """File statistics and message count per channel id of the file ``name`` made of ``chunks``."""
+    stats, counts = FileStats(name), defaultdict(int)
+    for chunk in chunks:
+        if chunk.channel_counts:
+            stats.add(chunk.start_ns)
+            stats.add(chunk.end_ns, sum(chunk.channel_counts.values()) - 1)
+        for channel, count in chunk.channel_counts.items():
+            counts[channel] += count
+    return stats, dict(counts)
+
+
+def summary(
+    position: int,
+    schema_records: list[bytes],
+    channel_records: list[bytes],
+    channel_ids: list[int],
+    chunks: list[Chunk],
+    metadata_text: str,
+) -> bytes:
+    """Everything that ends a file whose data section ends at ``position`` after ``chunks``: the
+    ``rosbag2`` metadata record (``metadata_text``), data end, the summary (schemas, channels,
+    chunk indexes, metadata index, statistics), summary offsets, footer and closing magic."""
+    stats, counts = chunk_stats("", chunks)
+    data_end = _record(_OP_DATA_END, struct.pack("<I", 0))
+    metadata_record = _record(
+        _OP_METADATA, _string("rosbag2") + _string_map({"serialized_metadata": metadata_text})
+    )
+    metadata_start = position
+    summary_start = metadata_start + len(metadata_record) + len(data_end)
+    schemas = b"".join(schema_records)
+    channels = b"".join(channel_records)
+    chunk_indexes = b"".join(
+        _record(
+            _OP_CHUNK_INDEX,
+            struct.pack("<QQQQ", c.start_ns if c.channel_counts else 0, c.end_ns, c.start,
+                        c.chunk_length)
+            + struct.pack("<I", 10 * len(c.index_offsets))
+            + b"".join(struct.pack("<HQ", ch, o) for ch, o in sorted(c.index_offsets.items()))
+            + struct.pack("<Q", c.end - c.start - c.chunk_length)
+            + _string(c.compression)
+            + struct.pack("<QQ", c.compressed_size, c.uncompressed_size),
+        )
+        for c in chunks
+    )
+    metadata_index = _record(
+        _OP_METADATA_INDEX,
+        struct.pack("<QQ", metadata_start, len(metadata_record)) + _string("rosbag2"),
+    )
+    channel_counts = b"".join(struct.pack("<HQ", ch, counts.get(ch, 0)) for ch in channel_ids)
+    statistics = _record(
+        _OP_STATISTICS,
+        struct.pack(
+            "<QHIIIIQQI", stats.message_count, len(schema_records), len(channel_records), 0, 1,
+            len(chunks), stats.start_ns if stats.message_count else 0, stats.end_ns,
+            len(channel_counts),
+        )
+        + channel_counts,
+    )
+    groups = [(_OP_SCHEMA, schemas), (_OP_CHANNEL, channels), (_OP_CHUNK_INDEX, chunk_indexes),
+              (_OP_METADATA_INDEX, metadata_index), (_OP_STATISTICS, statistics)]
+    offset, offsets = summary_start, []
+    for op, block in groups:
+        if block:
+            offsets.append(
+                _record(_OP_SUMMARY_OFFSET, struct.pack("<BQQ", op, offset, len(block)))
             )
-            for c in self._chunks
-        )
-        metadata_index = _record(
-            _OP_METADATA_INDEX, struct.pack("<QQ", metadata_start, len(metadata_record)) + _string("rosbag2")
-        )
-        channel_counts = b"".join(struct.pack("<HQ", ch, counts.get(ch, 0)) for ch in sorted(self._channels))
-        statistics = _record(
-            _OP_STATISTICS,
-            struct.pack(
-                "<QHIIIIQQI", stats.message_count, len(self._schema_records), len(self._channel_records), 0, 1,
-                len(self._chunks), stats.start_ns if stats.message_count else 0, stats.end_ns, len(channel_counts),
-            )
-            + channel_counts,
-        )
-        groups = [(_OP_SCHEMA, schemas), (_OP_CHANNEL, channels), (_OP_CHUNK_INDEX, chunk_indexes),
-                  (_OP_METADATA_INDEX, metadata_index), (_OP_STATISTICS, statistics)]
-        position, offsets = summary_start, []
-        for op, block in groups:
-            if block:
-                offsets.append(_record(_OP_SUMMARY_OFFSET, struct.pack("<BQQ", op, position, len(block))))
-            position += len(block)
-        summary_offset_start = position
-        footer = _record(_OP_FOOTER, struct.pack("<QQI", summary_start, summary_offset_start, 0))
-        self._write(metadata_record, data_end, *(block for _, block in groups), *offsets, footer, MAGIC)
+        offset += len(block)
+    footer = _record(_OP_FOOTER, struct.pack("<QQI", summary_start, offset, 0))
+    blocks = [block for _, block in groups]
+    return b"".join([metadata_record, data_end, *blocks, *offsets, footer, MAGIC])

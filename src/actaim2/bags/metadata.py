@@ -7,14 +7,17 @@ as ``sec: 9223372036, nsec: 854775807``, ``starting_time`` of an empty bag = 2**
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
+from pathlib import Path
 
 from rosbags.interfaces import Qos
-from rosbags.rosbag2.metadata import dump_qos_v9
+from rosbags.rosbag2.metadata import dump_qos_v9, parse_qos
 
 from actaim2.bags import yaml_emit
 
 VERSION = 9
+DEFAULT_ROS_DISTRO = "jazzy"  # what the bags are written for (sqlite3 files store theirs)
 NO_MESSAGES_START = 2**63 - 1  # rosbag2's starting_time while a file holds no message yet
 
 
@@ -56,6 +59,15 @@ def qos_list(profiles: list[Qos]) -> list[dict]:
 def qos_text(profiles: list[Qos]) -> str:
     """QoS as the YAML string MCAP channels carry in ``offered_qos_profiles``."""
     return yaml_emit.dump(qos_list(profiles))
+
+
+def qos_from_text(text: str) -> list[Qos]:
+    """The QoS of a channel's or topic row's ``offered_qos_profiles`` text; [] when absent or
+    unreadable (QoS is advisory: a player falls back to defaults)."""
+    try:
+        return parse_qos(text) if text else []
+    except Exception:  # noqa: BLE001 - rosbags raises several types for a bad QoS text
+        return []
 
 
 def document(
@@ -111,3 +123,11 @@ def document(
 def metadata_yaml(body: dict) -> str:
     """metadata.yaml text (rosbag2 writes no final newline)."""
     return yaml_emit.dump({"rosbag2_bagfile_information": body})
+
+
+def write_metadata_yaml(bag: Path, body: dict) -> None:
+    """(Re)write ``bag``/metadata.yaml with ``body``; a reader never sees half a file."""
+    target = bag / "metadata.yaml"
+    tmp = target.with_suffix(".yaml.tmp")
+    tmp.write_text(metadata_yaml(body))
+    os.replace(tmp, target)

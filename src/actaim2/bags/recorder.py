@@ -29,18 +29,24 @@ remembered and written at the start of every later bag, stamped with its first m
 time: each episode bag then carries its own /tf_static. A write error (full disk) ends the
 recording: the bag keeps what is complete on disk (BagWriter.recover), ``error`` says why,
 ``on_error`` is called from the writer thread.
+
+The writer thread also wakes when the open bag's oldest pending message is due on disk
+(BagWriter's ``max_chunk_age``), so a recorder that is killed loses at most that much even when
+no further message arrives.
 """
 from __future__ import annotations
 
 import threading
+import time
 from collections import OrderedDict, deque
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Callable
+from typing import Callable, TypeVar
 
 from actaim2.bags.metadata import TopicSpec
 from actaim2.bags.writer import BagWriter
 
+T = TypeVar("T")
 LATCHED_KEPT = 100  # distinct messages kept per latched topic (tf2's /tf_static listener depth)
 
 
@@ -223,23 +229,31 @@ class Recorder:
 
     # --- writer thread -------------------------------------------------------------------
     def _run(self) -> None:
+        flush_at: float | None = None  # time.monotonic() when pending messages are due on disk
         while True:
             with self._cond:
-                self._cond.wait_for(lambda: bool(self._queue))
-                item = self._queue.popleft()
-                if item[0] == "msg":
+                timeout = None if flush_at is None else max(0.0, flush_at - time.monotonic())
+                self._cond.wait_for(lambda: bool(self._queue), timeout)
+                item = self._queue.popleft() if self._queue else None  # None: woken by flush_at
+                if item is not None and item[0] == "msg":
                     self._queued_bytes -= len(item[3])
-            if item[0] == "stop":
+            if item is not None and item[0] == "stop":
                 self._guarded(self._close_bag)
                 return
             if self.error is None:
-                self._guarded(lambda: self._handle(item))
+                if item is not None:
+                    self._guarded(lambda: self._handle(item))
+                flush_at = self._guarded(self._flush_aged)
 
-    def _guarded(self, action: Callable[[], None]) -> None:
+    def _guarded(self, action: Callable[[], T]) -> T | None:
         try:
-            action()
+            return action()
         except Exception as exc:  # noqa: BLE001 - a write error (or a bug) must end the recording visibly, not the thread silently
             self._fail(exc)
+            return None
+
+    def _flush_aged(self) -> float | None:
+        return self._writer.flush_aged() if self._writer is not None else None
 
     def _handle(self, item: tuple) -> None:
         kind = item[0]

@@ -9,7 +9,11 @@ message index it concerns, and only that part is skipped:
   among that topic's messages, 0-based);
 * a storage file that rosbags cannot open: an MCAP file that ends early is read up to the
   damage (:mod:`actaim2.bags.salvage`); any other such file is skipped;
+* a storage file listed in metadata.yaml but missing, or there but not listed (skipped);
 * an error in the middle of a file: the rest of that file is skipped.
+
+A bag directory without a readable metadata.yaml is refused with the command that rebuilds it
+(``actaim2 bag-reindex``, :mod:`actaim2.bags.reindex`).
 
 Files are read one at a time, in the order of metadata.yaml (split bags are sequential), each
 in timestamp order. A path may also name a single .mcap or .db3 file.
@@ -23,12 +27,11 @@ from typing import Callable, Iterator
 import yaml
 from rosbags.interfaces import Connection, MessageDefinitionFormat, Qos
 from rosbags.rosbag2 import Reader
-from rosbags.rosbag2.metadata import parse_qos
 from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_typestore
 
 from actaim2.bags import salvage
-
-STORAGE_SUFFIXES = (".mcap", ".db3")
+from actaim2.bags.metadata import qos_from_text
+from actaim2.bags.reindex import STORAGE_OF_SUFFIX
 
 
 @dataclass
@@ -78,11 +81,18 @@ class BagSource:
             info = yaml.safe_load(meta.read_text())["rosbag2_bagfile_information"]
             paths = [self.path / Path(p.strip()).name for p in info["relative_file_paths"]]
         except (OSError, yaml.YAMLError, KeyError, TypeError) as exc:
-            paths = sorted(p for p in self.path.iterdir() if p.suffix in STORAGE_SUFFIXES)
-            self._report(f"{meta}: unreadable ({type(exc).__name__}: {exc}); playing the storage files found: {[p.name for p in paths]}")
+            what = f"unreadable ({type(exc).__name__}: {exc})" if meta.exists() else "missing"
+            raise FileNotFoundError(
+                f"{meta} is {what} (its recorder died, or the bag was copied without it): "
+                f"`actaim2 bag-reindex {self.path}` rebuilds it from the storage files"
+            ) from None
         missing = [p for p in paths if not p.exists()]
         for p in missing:
             self._report(f"{p}: listed in metadata.yaml but missing; skipped")
+        for p in sorted(set(self.path.iterdir()) - set(paths)):
+            if p.suffix in STORAGE_OF_SUFFIX:  # a split recording's file when its recorder died
+                self._report(f"{p}: not listed in metadata.yaml; skipped (`actaim2 bag-reindex "
+                             f"{self.path}` adds it)")
         return [p for p in paths if p.exists()]
 
     def _open_file(self, path: Path) -> _File:
@@ -97,11 +107,14 @@ class BagSource:
                 return _File(path, connections=[])
             scan = salvage.scan(path)
             kept = sum(scan.counts.values())
-            self._report(f"{path}: damaged ({exc}); {scan.reason}: playing the {kept} message(s) before byte {scan.stopped_at}")
+            bag = self.path if self.path.is_dir() else path.parent
+            self._report(f"{path}: damaged ({exc}); {scan.reason}: playing the {kept} message(s) "
+                         f"before byte {scan.stopped_at} (`actaim2 bag-reindex {bag}` finishes "
+                         "the file if its recorder died)")
             if scan.start_ns is not None:
                 self._starts.append(scan.start_ns)
             for cid, channel in scan.channels.items():
-                qos = _qos_from_text(channel.metadata.get("offered_qos_profiles", ""))
+                qos = qos_from_text(channel.metadata.get("offered_qos_profiles", ""))
                 self._add_topic(channel.topic, channel.msgtype, channel.definition, "ros2msg", qos, scan.counts.get(cid, 0))
             return _File(path, salvaged=scan)
         for c in connections:
@@ -182,9 +195,3 @@ class BagSource:
             for connection, timestamp, data in reader.messages(connections=selected):
                 yield connection.topic, timestamp, bytes(data)
 
-
-def _qos_from_text(text: str) -> list[Qos]:
-    try:
-        return parse_qos(text) if text else []
-    except Exception:  # noqa: BLE001 - QoS is advisory; a player falls back to defaults
-        return []

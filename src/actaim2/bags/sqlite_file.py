@@ -1,16 +1,22 @@
 """One sqlite3 storage file of a rosbag2 bag, in the layout of Jazzy's rosbag2 (schema version 4).
 
-Messages are committed every ``commit_bytes`` of payload (and at close), so a crash or a full
-disk loses at most the last uncommitted batch: sqlite's rollback journal keeps the committed
-part consistent. ``stats()`` counts committed messages only, which is what a reader will find.
+Messages are committed every ``commit_bytes`` of payload, at close, and whenever the caller
+calls :meth:`SqliteFile.flush` (the recorder does once the oldest uncommitted message has waited
+``max_chunk_age``), so a crash or a full disk loses at most the last uncommitted batch: sqlite's
+rollback journal keeps the committed part consistent. ``stats()`` counts committed messages
+only, which is what a reader will find. A file whose process died has no ``metadata`` row and
+maybe a hot journal: :func:`read` (opening it read-write rolls the journal back) and
+:func:`store_metadata` finish it (``actaim2 bag-reindex``).
 """
 from __future__ import annotations
 
 import sqlite3
+import time
 from collections import defaultdict
+from dataclasses import dataclass
 from pathlib import Path
 
-from actaim2.bags.metadata import VERSION, FileStats, TopicSpec, qos_text
+from actaim2.bags.metadata import VERSION, FileStats, TopicSpec, qos_from_text, qos_text
 
 SCHEMA_VERSION = 4
 _TABLES = """
@@ -45,9 +51,10 @@ class SqliteFile:
         self._committed, self._committed_counts = FileStats(path.name), defaultdict(int)
         self._batch: list[tuple[int, int, bytes]] = []
         self._pending_bytes = 0
+        self.pending_since: float | None = None  # time.monotonic(): oldest uncommitted message
 
     def add_topic(self, topic_id: int, spec: TopicSpec) -> None:
-        self._commit()
+        self.flush()
         if spec.msgtype not in self._types:
             self._types.add(spec.msgtype)
             encoding = "ros2idl" if spec.definition.startswith("=" * 80 + "\nIDL: ") else "ros2msg"
@@ -61,12 +68,15 @@ class SqliteFile:
         )
 
     def write(self, topic_id: int, timestamp: int, data: bytes) -> None:
+        if self.pending_since is None:
+            self.pending_since = time.monotonic()
         self._batch.append((topic_id, timestamp, data))
         self._pending_bytes += len(data)
         if self._pending_bytes >= self._commit_bytes:
-            self._commit()
+            self.flush()
 
-    def _commit(self) -> None:
+    def flush(self) -> None:
+        """Commit the messages written since the last commit."""
         if not self._batch:
             return
         batch = self._batch
@@ -82,6 +92,7 @@ class SqliteFile:
             self._committed_counts[topic_id] += 1
         self._batch = []
         self._pending_bytes = 0
+        self.pending_since = None
 
     @property
     def size(self) -> int:
@@ -91,17 +102,73 @@ class SqliteFile:
         return self._committed, dict(self._committed_counts)
 
     def close(self) -> None:
-        self._commit()
+        self.flush()
         stats, counts = self.stats()
-        self._conn.execute("INSERT INTO metadata(metadata_version, metadata) VALUES (?, ?)", (VERSION, self._describe(stats, counts)))
+        _insert_metadata(self._conn, self._describe(stats, counts))
         self._conn.close()
 
     def recover(self) -> None:
         """After a write error: drop the uncommitted batch; the committed messages stay readable."""
         self._batch = []
         self._pending_bytes = 0
+        self.pending_since = None
         try:
             if self._conn.in_transaction:
                 self._conn.execute("ROLLBACK")
         finally:
             self._conn.close()
+
+
+def _insert_metadata(conn: sqlite3.Connection, text: str) -> None:
+    conn.execute("INSERT INTO metadata(metadata_version, metadata) VALUES (?, ?)", (VERSION, text))
+
+
+@dataclass
+class SqliteContents:
+    """What a .db3 file holds, read back from its tables."""
+
+    topics: dict[int, TopicSpec]  # topic id -> spec
+    stats: FileStats
+    counts: dict[int, int]  # messages per topic id
+    ros_distro: str
+    has_metadata: bool  # the ``metadata`` row its writer stores at close
+
+
+def read(path: Path) -> SqliteContents:
+    """Topics, message counts and time range of a rosbag2 schema-4 file. Opened read-write, so
+    that a rollback journal left by a process that died is rolled back first."""
+    conn = sqlite3.connect(path)
+    try:
+        definitions = dict(
+            conn.execute("SELECT topic_type, encoded_message_definition FROM message_definitions")
+        )
+        topics = {
+            row[0]: TopicSpec(row[1], row[2], definitions.get(row[2], ""), row[5],
+                              qos_from_text(row[4]), row[3])
+            for row in conn.execute(
+                "SELECT id, name, type, serialization_format, offered_qos_profiles,"
+                " type_description_hash FROM topics ORDER BY id"
+            )
+        }
+        stats, counts = FileStats(path.name), {}
+        for topic_id, count, first, last in conn.execute(
+            "SELECT topic_id, COUNT(*), MIN(timestamp), MAX(timestamp) FROM messages"
+            " GROUP BY topic_id"
+        ):
+            counts[topic_id] = count
+            stats.add(first)
+            stats.add(last, count - 1)
+        (ros_distro,) = conn.execute("SELECT ros_distro FROM schema").fetchone()
+        (metadata_rows,) = conn.execute("SELECT COUNT(*) FROM metadata").fetchone()
+    finally:
+        conn.close()
+    return SqliteContents(topics, stats, counts, ros_distro, metadata_rows > 0)
+
+
+def store_metadata(path: Path, text: str) -> None:
+    """Store the bag's metadata in a file whose writer died before storing it at close."""
+    conn = sqlite3.connect(path, isolation_level=None)
+    try:
+        _insert_metadata(conn, text)
+    finally:
+        conn.close()

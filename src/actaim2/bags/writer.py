@@ -2,7 +2,10 @@
 
 Files are named like ``ros2 bag record`` names them, ``<bag>/<bag>_<n>.mcap`` (or ``.db3``).
 metadata.yaml is (re)written whenever a file is finished, so a recording that dies later still
-describes its finished files; each MCAP file also carries the metadata in its summary.
+describes its finished files; each MCAP file also carries the metadata in its summary. What the
+current file holds reaches the disk by size (``chunk_size``) and, through
+:meth:`BagWriter.flush_aged`, by age (``max_chunk_age``); after a process dies, ``actaim2
+bag-reindex`` (actaim2.bags.reindex) finishes the file and rewrites metadata.yaml.
 
 Use from one thread (the recorder's writer thread). A write error (a full disk, a vanished
 directory) raises out of :meth:`BagWriter.write`; :meth:`BagWriter.recover` then finishes the
@@ -10,7 +13,7 @@ current file with what is completely on disk and writes metadata.yaml for it.
 """
 from __future__ import annotations
 
-import os
+import time
 from collections import defaultdict
 from pathlib import Path
 from typing import BinaryIO, Callable
@@ -24,6 +27,7 @@ from actaim2.bags.sqlite_file import SqliteFile
 STORAGES = ("mcap", "sqlite3")
 COMPRESSIONS = tuple(COMPRESSORS)
 DEFAULT_CHUNK_SIZE = 786432  # rosbag2's MCAP default (768 KiB)
+DEFAULT_MAX_CHUNK_AGE = 1.0  # s a written message may wait in memory before it goes to disk
 
 
 class BagWriter:
@@ -35,11 +39,14 @@ class BagWriter:
         chunk_size: int = DEFAULT_CHUNK_SIZE,
         max_file_size: int = 0,
         max_file_duration_ns: int = 0,
-        ros_distro: str = "jazzy",
+        ros_distro: str = md.DEFAULT_ROS_DISTRO,
         open_file: Callable[[Path], BinaryIO] | None = None,
+        max_chunk_age: float = DEFAULT_MAX_CHUNK_AGE,
     ) -> None:
         """``max_file_size`` (bytes) and ``max_file_duration_ns`` split the bag (0 = never).
-        ``open_file`` opens each MCAP file (tests inject a disk that fills up)."""
+        ``open_file`` opens each MCAP file (tests inject a disk that fills up).
+        ``max_chunk_age`` (s): :meth:`flush_aged` writes the pending chunk (sqlite3: commits the
+        pending batch) once its oldest message has waited this long; 0 = by size only."""
         if storage not in STORAGES:
             raise ValueError(f"unknown storage '{storage}' (use one of {list(STORAGES)})")
         if compression not in COMPRESSIONS:
@@ -55,6 +62,7 @@ class BagWriter:
         self._max_duration = max_file_duration_ns
         self._ros_distro = ros_distro
         self._open_file = open_file
+        self._max_chunk_age = max_chunk_age
         self.topics: list[TopicSpec] = []
         self._done_files: list[FileStats] = []
         self._done_counts: dict[int, int] = defaultdict(int)
@@ -76,6 +84,19 @@ class BagWriter:
         if self._file_first_ns is None:
             self._file_first_ns = timestamp
         self._file.write(topic_id, timestamp, data)
+
+    def flush_aged(self) -> float | None:
+        """Put the current file's pending messages on disk if the oldest has waited
+        ``max_chunk_age``. Returns when that will be due (``time.monotonic()``), None when no
+        message waits (or ages are not looked at)."""
+        since = self._file.pending_since
+        if since is None or self._max_chunk_age <= 0:
+            return None
+        due = since + self._max_chunk_age
+        if time.monotonic() < due:
+            return due
+        self._file.flush()
+        return None
 
     def close(self) -> None:
         self._file.close()
@@ -144,7 +165,4 @@ class BagWriter:
         return yaml_emit.dump(self._document((stats, counts)))
 
     def _write_metadata_yaml(self, current: tuple[FileStats, dict[int, int]] | None) -> None:
-        target = self.path / "metadata.yaml"
-        tmp = target.with_suffix(".yaml.tmp")
-        tmp.write_text(md.metadata_yaml(self._document(current)))
-        os.replace(tmp, target)
+        md.write_metadata_yaml(self.path, self._document(current))
