@@ -2,25 +2,28 @@
 
 One node process (Azure Kinect rig, ray casting, physics as fast as possible) with its own
 hull cache, preparing a small hand-made object at start-up (``prepare_objects``): each shared
-object resets with its DoFs and limits, and the next /points2 cloud shows it; bad folders are
-answered with success=false and the reason, and the node keeps serving.
+object resets with its DoFs and limits, and the next /points2 cloud shows it; the arm, sent a
+scripted push through the trajectory action, moves a real drawer (/object_state); bad folders
+are answered with success=false and the reason, and the node keeps serving.
 """
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from actaim2_msgs.srv import ResetScene
+from control_msgs.action import FollowJointTrajectory, GripperCommand
 from rclpy.qos import qos_profile_sensor_data
-from sensor_msgs.msg import PointCloud2
+from sensor_msgs.msg import JointState, PointCloud2
 from tf2_msgs.msg import TFMessage
 
+from actaim2_control.action_client import LockedActionClient
 from actaim2_perception.pointcloud2 import from_msg
 from actaim2_perception.transforms import TF_STATIC_LISTENER_QOS
 from harness import NodeProcess, wait_for
 from actaim2.sim.objects.partnet import read_object_folder
 from actaim2.sim.objects.sizing import fit_object
 from partnet_shared import OBJECTS, bad_folders, make_object, shared_partnet, urdf_limits
-from test_sim_node import Inbox, stamp_ns, tf_static_chain
+from test_sim_node import ARM, Inbox, send, stamp_ns, tf_static_chain, trajectory
 
 
 @pytest.fixture(scope="module")
@@ -90,3 +93,39 @@ def test_bad_folders_are_answered_with_the_reason_and_the_node_keeps_serving(set
     response = call(root / "102456")
     assert response.success and response.object_id == "102456", response.message
     assert node.alive()
+
+
+def test_the_arm_pushes_a_real_drawer_shut_through_the_trajectory_action(setup, ros_node):
+    """The push is planned without ROS on the same reset (privileged: where the drawer's face
+    is), then sent as joint targets; only /object_state says whether the drawer was there."""
+    from actaim2.rollout.push import ScriptedPush
+    from actaim2.sim.env import SimEnv
+
+    node, root, tmp = setup
+    folder, dof, scene = root / "40147", 1, dict(seed=2, dof_fraction=0.5)
+    env = SimEnv("panda", hull_cache=tmp / "hulls")
+    info = env.reset(folder=folder, **scene)
+    pusher = ScriptedPush(env)
+    plan = pusher.plan(dof)
+    assert not isinstance(plan, str), plan
+    times, positions = pusher.timing(plan)
+
+    reset = ros_node.create_client(ResetScene, "/reset_scene")
+    arm = LockedActionClient(ros_node, FollowJointTrajectory, "/joint_trajectory_controller/follow_joint_trajectory")
+    gripper = LockedActionClient(ros_node, GripperCommand, "/gripper_controller/gripper_cmd")
+    assert reset.wait_for_service(timeout_sec=120.0) and arm.wait_for_server(timeout_sec=60.0)
+    assert gripper.wait_for_server(timeout_sec=60.0)
+    future = reset.call_async(ResetScene.Request(object_path=str(folder), **scene))
+    assert wait_for(future.done, 60.0) and future.result().success, future.result().message
+    np.testing.assert_allclose(future.result().dof_initial, info.dof_initial, atol=1e-3)
+    state = Inbox(ros_node, JointState, "/object_state")
+    goal = GripperCommand.Goal()
+    goal.command.position = 0.0  # fingers closed: the push is made with the fingertips
+    accepted, _ = send(gripper, goal)
+    assert accepted
+    accepted, result = send(arm, trajectory(ARM, list(zip(times, positions))), timeout=60.0)
+    assert accepted, "push trajectory refused"
+    n = len(state.messages)
+    state.wait(n + 1)
+    moved = plan.sign * (state.messages[-1].position[dof] - info.dof_initial[dof]) / (info.dof_upper[dof] - info.dof_lower[dof])
+    assert moved > 0.1, f"the drawer moved {moved:.1%} of its range ({result.error_string})"
