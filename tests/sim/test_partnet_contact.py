@@ -16,6 +16,7 @@ import pytest
 import sapien
 
 from actaim2.rollout.push import ScriptedPush
+from actaim2.sim.contacts import ContactMonitor
 from actaim2.sim.env import SimEnv
 from actaim2.sim.objects.hulls import HullCache
 from actaim2.sim.objects.surface import surface_points
@@ -88,6 +89,19 @@ def test_a_sphere_dropped_on_the_top_surface_rests_on_it_with_the_hull_cache_col
     rest = drop_sphere(env, xy, height + 0.05)
     assert abs(rest[2] - (height + SPHERE_RADIUS)) < 0.005, f"{name}: the sphere ended at z={rest[2]:.3f}, on a top at {height:.3f}"
     assert np.linalg.norm(rest[:2] - xy) < 0.01, f"{name}: the sphere rolled from {xy} to {rest[:2]}"
+
+
+def test_the_contact_monitor_sees_a_push_and_not_a_move_in_free_space(env, pusher):
+    monitor = ContactMonitor(env)
+    try:
+        reset(env, DRAWER_AND_DOOR)
+        monitor.reset()
+        env.follow_trajectory(np.array([1.0]), (env.spec.home + 0.3)[None, :])  # away from the object
+        assert not monitor.touched
+        assert pusher.push(1).moved > 0.1
+        assert monitor.touched
+    finally:
+        env.step_observers.remove(monitor)
 
 
 @pytest.mark.parametrize("name, dof", [(DRAWER_AND_DOOR, 1), (DRAWER_AND_DOOR, 0), (TWO_DOORS, 0), (TABLE, 0),

@@ -63,6 +63,7 @@ from actaim2.data.trajectory import CameraImage, ObjectState, Observation, Traje
 from actaim2.parallel import run_ordered
 from actaim2.perception.config import CAPTURE_FIELDS, RENDER_PATHS, PerceptionConfig, capture_part, check_compatible, load_perception_config
 from actaim2.robots import load_robot_spec
+from actaim2.sim.contacts import ContactMonitor
 from actaim2.sim.env import SimEnv
 from actaim2.sim.objects.catalog import object_id
 from actaim2.sim.objects.hulls import HullCache
@@ -187,6 +188,7 @@ class TrajectoryCollector:
         sampling = SamplingConfig.for_robot(self.env.spec)
         self.samplers: dict[str, Sampler] = {"random": RandomSampler(sampling), "grasp": HeuristicGraspSampler(self.cloud_config, sampling)}
         self.executor = SimEnvExecutor(self.env)
+        self.contacts = ContactMonitor(self.env)
 
     def run(self, task: Task) -> EncodedTrajectory | dict:
         """The encoded trajectory, or a {id, reason} record when no attempt could be executed."""
@@ -199,7 +201,7 @@ class TrajectoryCollector:
             if isinstance(result, Trajectory):
                 encoded = encode_trajectory(result)
                 encoded.entry.update(index=task.index, action=[float(v) for v in ActionSequence.from_keyposes(result.keyposes).vector()],
-                                     attempts=attempt + 1, worker_seconds=round(time.perf_counter() - start, 3))
+                                     touched=result.info["touched"], attempts=attempt + 1, worker_seconds=round(time.perf_counter() - start, 3))
                 return encoded
             reasons.append(result)
         return {"id": task.tid, "sampler": task.sampler, "category": task.category, "instance": task.instance, "reasons": reasons}
@@ -209,6 +211,7 @@ class TrajectoryCollector:
         reset_seed = task.reset_seed if task.reset_seed is not None else int(rng.integers(2**31))
         info = env.reset(task.category, task.instance, seed=reset_seed, dof_fraction=self.config.dof_fraction,
                          folder=task.folder or None)
+        self.contacts.reset()
         observations = {"init": from_sim(env.observe(with_robot=False))}
         joints = {"init": self._joints()}
         cloud = object_cloud(observations["init"], self.cloud_config, rng)
@@ -240,7 +243,7 @@ class TrajectoryCollector:
             id=task.tid, object_id=info.object_id, category=task.category, instance=task.instance, split=task.split,
             sampler=task.sampler, seed=task.seed, keyposes=keyposes, observations=observations, robot_joints=joints,
             object_state=ObjectState(list(info.dof_names), lower, upper, info.dof_initial, env.object_dof()),
-            info={"outcomes": outcomes, "reset_seed": info.seed, "sampler_cluster": task.gmm.cluster_of(task.index) if task.gmm else None,
+            info={"outcomes": outcomes, "reset_seed": info.seed, "touched": self.contacts.touched, "sampler_cluster": task.gmm.cluster_of(task.index) if task.gmm else None,
                   **({"randomisation": env.randomisation_draw} if env.randomiser is not None else {})},
         )
 
