@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import time
 import zlib
 from dataclasses import dataclass, field, replace
@@ -57,8 +58,8 @@ from actaim2.data.random_sampler import RandomSampler, SamplingConfig
 from actaim2.data.real_objects import FolderObject
 from actaim2.data.splits import TRAIN, TRAINING_SPLITS, check_no_leak, split_of
 from actaim2.data.stats import RUNS_FILE
-from actaim2.data.storage import (DatasetReader, DatasetWriter, EncodedTrajectory, encode_trajectory, object_of,
-                                  trajectory_id)
+from actaim2.data.storage import (SKIPPED_FILE, DatasetReader, DatasetWriter, EncodedTrajectory, encode_trajectory,
+                                  object_of, trajectory_id)
 from actaim2.data.trajectory import CameraImage, ObjectState, Observation, Trajectory
 from actaim2.parallel import run_ordered
 from actaim2.perception.config import CAPTURE_FIELDS, RENDER_PATHS, PerceptionConfig, capture_part, check_compatible, load_perception_config
@@ -74,7 +75,6 @@ EXPLORE_SAMPLERS = ("random", "grasp")
 SAMPLER_CODES = {"random": 1, "grasp": 2, "gmm": 3}
 PLACEMENT_CODE = 7  # derive_seed's last number for a shared reset, so it differs from every task seed
 PRECHECK_IK_RESTARTS = 8
-SKIPPED_FILE = "skipped.jsonl"  # trajectories given up on (no feasible sample): not retried on resume
 TOP_UP_ROUNDS = 3  # random replacements of skipped explore trajectories (replacements can be skipped too)
 
 log = logging.getLogger(__name__)
@@ -328,6 +328,7 @@ def run_tasks(config: CollectConfig, writer: DatasetWriter, tasks: list[Task], s
         finally:
             bar.close()
     summary["seconds"] = round(time.perf_counter() - start, 2)
+    summary["load_average"] = round(os.getloadavg()[0], 2)  # the machine's 1-minute load as the stage ended
     with open(config.out / RUNS_FILE, "a") as f:
         f.write(json.dumps(summary) + "\n")
     return summary

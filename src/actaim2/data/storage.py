@@ -5,6 +5,7 @@ Layout of a dataset folder::
     dataset.json          format version, rig, perception capture fields (actaim2.perception.config:
                           rig, cube, robot filter, render path), collection settings (written once)
     index.jsonl           one JSON object per stored trajectory (appended after its bytes are on disk)
+    skipped.jsonl         trajectories collection gave up on (no feasible sample), with the reasons
     labels.jsonl          visual success labels {id, score, success} (rewritten by each labelling)
     chunks/chunk-00000.tar ...
 
@@ -52,6 +53,9 @@ DEPTH_SCALE = 1000.0  # stored depth unit: millimetres
 CHUNK_BYTES = 256 * 2**20  # start a new chunk past this size
 MAX_TRAJECTORY_BYTES = 3 * 2**20  # the budget per trajectory
 PNG_LEVEL = 3  # zlib level; measured on collected pictures: 1.3 ms and 0.51 MB per trajectory, level 6 2.0 ms and 0.43 MB
+
+INDEX_FILE = "index.jsonl"
+SKIPPED_FILE = "skipped.jsonl"  # not retried when collection resumes
 
 
 def encode_depth(depth_m: np.ndarray) -> np.ndarray:
@@ -224,7 +228,7 @@ class DatasetWriter:
             tmp = info_path.with_suffix(".tmp")
             tmp.write_text(json.dumps(body, indent=2))
             tmp.replace(info_path)
-        self.index_path = self.root / "index.jsonl"
+        self.index_path = self.root / INDEX_FILE
         self.entries = self._recover()
         self.ids = {e["id"] for e in self.entries}
         self._chunk_number = max((int(e["chunk"][len("chunks/chunk-"):-len(".tar")]) for e in self.entries), default=0)
@@ -302,7 +306,7 @@ class DatasetReader:
         self.info = json.loads(info_path.read_text())
         if self.info.get("format_version") != FORMAT_VERSION:
             raise ValueError(f"dataset format {self.info.get('format_version')} is not the supported {FORMAT_VERSION}")
-        self.entries = _read_jsonl(self.root / "index.jsonl")
+        self.entries = _read_jsonl(self.root / INDEX_FILE)
         labels = {d["id"]: d for d in _read_jsonl(self.root / "labels.jsonl")}
         for e in self.entries:
             if e["id"] in labels:

@@ -7,10 +7,15 @@ A record is a folder ``results/<name>/`` in the repository:
   and where it ran: ``machine``, ``cores``, ``workers``, ``load_average`` (the 1-minute load when
   the tables were written), ``seconds`` (wall time of the session that finished the run),
   ``samples``, a free ``note`` and ``source`` (where the raw run came from);
-- ``results.jsonl.gz``: the evaluation's per-sample records (``eval/results.py``), gzipped.
+- ``results.jsonl.gz``: the evaluation's per-sample records (``eval/results.py``), gzipped;
+  for a collection (``kind`` "collection"), one line per trajectory: its index entry without
+  picture offsets and action (object, category, sampler, ground-truth success, DoF change,
+  whether the robot touched the object), and one per skipped trajectory (``skipped`` true).
 
 :func:`record_from_evaluation` makes one from an ``actaim2 evaluate`` output folder, reading the
-header lines of its ``tables.md`` (``evaluate_cli._header``) for the command, time and load.
+header lines of its ``tables.md`` (``evaluate_cli._header``) for the command, time and load;
+:func:`record_from_collection` from an ``actaim2 collect`` dataset (its ``dataset.json``, stage
+runs and index).
 """
 from __future__ import annotations
 
@@ -21,6 +26,8 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from actaim2.data.stats import RUNS_FILE
+from actaim2.data.storage import INDEX_FILE, SKIPPED_FILE
 from actaim2.eval.results import RESULTS_FILE, RUN_FILE, machine_description
 
 RESULTS_DIR = "results"
@@ -98,6 +105,38 @@ def record_from_evaluation(run_dir: Path, root: Path, name: str, *, machine: str
             "machine": machine or header.get("machine") or machine_description(),
             "cores": cores or header.get("cores") or os.cpu_count(),
             "note": note, "source": source or str(run_dir)}
+    return _write_record(root, name, meta, lines)
+
+
+COLLECTION_FIELDS = ("id", "object_id", "category", "split", "sampler", "index", "gt_success",
+                     "dof_change", "touched", "attempts", "worker_seconds")
+
+
+def record_from_collection(dataset: Path, root: Path, name: str, *, command: str,
+                           note: str = "", source: str = "") -> Path:
+    """Write ``root/results/<name>/`` from a collected dataset; ``command`` is the collect
+    command that made it (a dataset does not keep its command line). Returns the folder."""
+    dataset = Path(dataset)
+
+    def lines(path: Path) -> list[dict]:
+        return [json.loads(t) for t in path.read_text().splitlines() if t.strip()] if path.exists() else []
+
+    stages = lines(dataset / RUNS_FILE)
+    samples = [{k: e[k] for k in COLLECTION_FIELDS if k in e} for e in lines(dataset / INDEX_FILE)]
+    samples += [{"id": s["id"], "sampler": s["sampler"], "category": s["category"], "skipped": True,
+                 "reasons": s["reasons"]} for s in lines(dataset / SKIPPED_FILE)]
+    meta = {"name": name, "kind": "collection", "command": command, "checkpoints": {},
+            "dataset": {"path": str(dataset), "info": json.loads((dataset / "dataset.json").read_text())},
+            "stages": stages, "samples": len(samples),
+            "seconds": round(sum(s["seconds"] for s in stages)),
+            "workers": max((s["workers"] for s in stages), default=0),
+            "load_average": max((s.get("load_average", 0.0) for s in stages), default=0.0),
+            "machine": machine_description(), "cores": os.cpu_count(),
+            "note": note, "source": source or str(dataset)}
+    return _write_record(root, name, meta, [json.dumps(s, sort_keys=True) for s in samples])
+
+
+def _write_record(root: Path, name: str, meta: dict, lines: list[str]) -> Path:
     out = Path(root) / RESULTS_DIR / name
     out.mkdir(parents=True, exist_ok=True)
     (out / RECORD_FILE).write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")

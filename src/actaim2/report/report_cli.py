@@ -3,6 +3,7 @@
     actaim2 report                  # rewrite the tables between <!-- report:... --> markers
     actaim2 report --check          # exit 1: a table differs from its records, a record is missing
     actaim2 report --add runs/eval_x --name NAME   # an evaluation folder -> results/NAME
+    actaim2 report --add data/ds --name NAME --command "actaim2 collect ..."   # a collected dataset
 """
 from __future__ import annotations
 
@@ -18,7 +19,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--check", action="store_true",
                         help="write nothing; exit 1 if a table differs from what its records give")
     parser.add_argument("--add", type=Path, metavar="RUN_DIR",
-                        help="make a record of this actaim2 evaluate output, then regenerate")
+                        help="make a record of this actaim2 evaluate output (or actaim2 collect "
+                             "dataset), then regenerate")
+    parser.add_argument("--command", help="the collect command that made the dataset (--add of a "
+                                          "dataset: a dataset does not keep its command line)")
     parser.add_argument("--name", help="the record's folder name under results/ (with --add)")
     parser.add_argument("--machine",
                         help="the run's machine (with --add; default: tables.md's, else this)")
@@ -31,7 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from actaim2.report.markers import blocks, rewrite
-    from actaim2.report.records import RecordError, record_from_evaluation
+    from actaim2.report.records import RecordError, record_from_collection, record_from_evaluation
 
     root = args.root.resolve()
     try:
@@ -39,8 +43,15 @@ def main(args: argparse.Namespace) -> int:
             if not args.name:
                 print("report: --add needs --name", file=sys.stderr)
                 return 2
-            out = record_from_evaluation(args.add, root, args.name, machine=args.machine,
-                                         cores=args.cores, note=args.note, source=args.source)
+            if (args.add / "dataset.json").is_file():
+                if not args.command:
+                    print("report: --add of a dataset needs --command", file=sys.stderr)
+                    return 2
+                out = record_from_collection(args.add, root, args.name, command=args.command,
+                                             note=args.note, source=args.source)
+            else:
+                out = record_from_evaluation(args.add, root, args.name, machine=args.machine,
+                                             cores=args.cores, note=args.note, source=args.source)
             print(f"record {out.relative_to(root)}")
         if args.check:
             stale = [b for b in blocks(root) if b.body != b.expected]

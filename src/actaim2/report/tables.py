@@ -9,9 +9,12 @@ from __future__ import annotations
 
 from typing import Callable, Sequence
 
+import numpy as np
+
 from actaim2.eval import tables as et
 from actaim2.eval.evalset import SPLIT_TITLES, SPLITS
 from actaim2.eval.methods import METHODS
+from actaim2.eval.stats import Rate
 from actaim2.report.records import Record, RecordError
 
 PAPER_COLUMN = {split: i for i, split in enumerate(SPLITS)}  # the paper's AVG columns, in order
@@ -71,9 +74,9 @@ def runs_table(records: Sequence[Record]) -> list[str]:
              "| machine | cores | workers | load average | note |", "|---" * 11 + "|"]
     for r in records:
         m = r.meta
-        checkpoints = ", ".join(f"{c['weights_sha256'][:16]}" for c in m["checkpoints"].values())
+        checkpoints = ", ".join(f"{c['weights_sha256'][:16]}" for c in m["checkpoints"].values()) or "-"
         datasets = sorted({c["dataset_digest"] for c in m["checkpoints"].values()}
-                          | ({m["dataset"]["digest"]} if "dataset" in m else set()))
+                          | ({m["dataset"].get("digest", m["dataset"]["path"])} if "dataset" in m else set()))
         lines.append(f"| `results/{r.name}` | `{m['command']}` | {checkpoints} "
                      f"| {', '.join(datasets)} | {m['samples']} | {m['seconds']} s "
                      f"| {m['machine']} | {m['cores']} | {m['workers']} | {m['load_average']:.1f} "
@@ -92,6 +95,71 @@ def _evaluation(render: Callable[[list[dict], list[str]], list[str]], grouped: b
     return table
 
 
+SAMPLERS = ("random", "grasp", "gmm")
+MOVED = 0.05  # a trajectory "moved a part" when some DoF changed by more than this share of its range
+# Bins of a trajectory's largest DoF change (share of the range), for those that touched the object.
+CHANGE_BINS = ((0.0, 0.01), (0.01, MOVED), (MOVED, 0.3), (0.3, np.inf))
+
+
+def _collected(records: Sequence[Record]) -> list[dict]:
+    for r in records:
+        if r.meta.get("kind") != "collection":
+            raise RecordError(f"record {r.name} is not a collection")
+    return [s for r in records for s in r.samples]
+
+
+def _largest_change(sample: dict) -> float:
+    return float(np.max(np.abs(sample["dof_change"]), initial=0.0))
+
+
+def _by_category(samples: list[dict]) -> list[tuple[str, list[dict]]]:
+    categories = sorted({s["category"] for s in samples})
+    return [(c, [s for s in samples if s["category"] == c]) for c in categories] + [("all", samples)]
+
+
+def samplers_table(records: Sequence[Record]) -> list[str]:
+    """Per category: objects, and per sampler the ground-truth success (95 % Wilson interval,
+    successes / executed trajectories) and the share of executed trajectories that moved a part
+    by more than MOVED of its range; skipped trajectories (no feasible sample) are counted apart."""
+    samples = _collected(records)
+    samplers = [s for s in SAMPLERS if any(x["sampler"] == s for x in samples)]
+    head = " | ".join(f"{s}: success % | {s}: moved > {MOVED:.0%} | {s}: skipped" for s in samplers)
+    lines = [f"| category | objects | {head} |", "|---" * (2 + 3 * len(samplers)) + "|"]
+    for category, rows in _by_category(samples):
+        cells = []
+        for sampler in samplers:
+            done = [x for x in rows if x["sampler"] == sampler and not x.get("skipped")]
+            rate = Rate(sum(bool(x["gt_success"]) for x in done), len(done))
+            moved = sum(_largest_change(x) > MOVED for x in done)
+            skipped = sum(x["sampler"] == sampler and bool(x.get("skipped")) for x in rows)
+            cells.append(f"{rate.cell()} ({rate.successes}/{rate.trials}) | {100 * moved / len(done):.0f} % "
+                         f"| {skipped}" if done else f"- | - | {skipped}")
+        objects = len({x["object_id"] for x in rows if "object_id" in x})
+        lines.append(f"| {category} | {objects} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def dof_change_table(records: Sequence[Record]) -> list[str]:
+    """Per category and sampler, where executed trajectories ended: never touched the object,
+    or touched it with the largest DoF change (share of its range) in each of CHANGE_BINS."""
+    samples = [s for s in _collected(records) if not s.get("skipped")]
+
+    def label(lo: float, hi: float) -> str:
+        return f">= {lo:.0%}" if hi == np.inf else f"{lo:.0%}-{hi:.0%}"
+
+    bins = " | ".join(f"touched, {label(lo, hi)}" for lo, hi in CHANGE_BINS)
+    lines = [f"| category | sampler | trajectories | never touched | {bins} |",
+             "|---" * (4 + len(CHANGE_BINS)) + "|"]
+    for category, rows in _by_category(samples):
+        for sampler in [s for s in SAMPLERS if any(x["sampler"] == s for x in rows)]:
+            done = [x for x in rows if x["sampler"] == sampler]
+            touched = [_largest_change(x) for x in done if x["touched"]]
+            shares = [sum(lo <= c < hi for c in touched) for lo, hi in CHANGE_BINS]
+            cells = " | ".join(f"{100 * k / len(done):.0f} %" for k in [len(done) - len(touched), *shares])
+            lines.append(f"| {category} | {sampler} | {len(done)} | {cells} |")
+    return lines
+
+
 # marker table name -> renderer of the records the marker names
 TABLES: dict[str, Callable[[Sequence[Record]], list[str]]] = {
     "results": results_table,
@@ -104,4 +172,6 @@ TABLES: dict[str, Callable[[Sequence[Record]], list[str]]] = {
     "clusters": _evaluation(et.cluster_table),
     "stops": _evaluation(et.stops_table),
     "paper": lambda records: et.paper_table(),
+    "samplers": samplers_table,
+    "dof_change": dof_change_table,
 }
