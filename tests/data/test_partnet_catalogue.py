@@ -125,3 +125,19 @@ def test_validate_refuses_a_test_split_without_final(collected: Path, tmp_path, 
     assert cli(args + ["--split", "test_unseen_instance", "--final"]) == 2
     assert "no protocol lock" in capsys.readouterr().out
     assert not (tmp_path / "v" / "validation.json").exists()
+
+
+def test_the_sim_loop_runs_a_partnet_split_but_never_a_test_split(monkeypatch) -> None:
+    from actaim2.policy.episodes import catalogue_paths
+
+    root = shared_partnet()
+    listed = yaml.safe_load((root / "splits.yaml").read_text())
+    val = catalogue_paths("partnet", str(root), [""])  # the default: val
+    assert sorted(Path(p).name for p in val) == sorted(k for k, v in listed.items() if v == "val")
+    monkeypatch.setenv(PARTNET_ROOT_ENV, str(root))
+    assert len(catalogue_paths("partnet", "", ["train", "extra"])) == 42 + 51
+    with pytest.raises(ValueError, match="test splits"):
+        catalogue_paths("partnet", str(root), ["val", "test_unseen_category"])
+    assert catalogue_paths("generated", "", [""]) == []
+    with pytest.raises(ValueError, match="for the partnet catalogue"):
+        catalogue_paths("generated", "", ["val"])
