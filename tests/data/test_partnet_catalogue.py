@@ -1,5 +1,6 @@
 """The partnet catalogue: real PartNet-Mobility folders split by their splits.yaml, never by hash;
 a collection on them keeps val and test objects out of what training reads."""
+
 from __future__ import annotations
 
 import json
@@ -11,22 +12,43 @@ import pytest
 import yaml
 
 from actaim2.cli import main as cli
-from actaim2.data.real_objects import (PARTNET_ROOT_ENV, catalogue_folders, check_training_objects, folder_objects,
-                                       partnet_root, partnet_splits)
+from actaim2.data.real_objects import (
+    PARTNET_ROOT_ENV,
+    catalogue_folders,
+    check_training_objects,
+    folder_objects,
+    partnet_root,
+    partnet_splits,
+)
 from actaim2.data.splits import CALIBRATION_SPLITS, GENERATED, PARTNET, TRAINING_SPLITS, catalogue
 from actaim2.data.storage import DatasetReader
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "sim"))
 from partnet_shared import SHARED_PARTNET, make_object, shared_partnet  # noqa: E402
 
-COMMITTED = Path(__file__).resolve().parents[2] / "actaim2_policy" / "checkpoints" / "actaim2_ring5"
+COMMITTED = (
+    Path(__file__).resolve().parents[2] / "actaim2_policy" / "checkpoints" / "actaim2_ring5"
+)
 
 
 def test_catalogues_name_their_splits_and_roles() -> None:
-    assert PARTNET.splits == ("train", "val", "test_unseen_instance", "test_unseen_category", "extra")
-    assert set(PARTNET.training) == {"train", "extra"} and PARTNET.test == ("test_unseen_instance", "test_unseen_category")
-    assert not set(TRAINING_SPLITS) & set(PARTNET.validation + PARTNET.test) and set(CALIBRATION_SPLITS) == {"train_seen", "train"}
-    assert not set(GENERATED.splits) & set(PARTNET.splits)  # a trajectory's split names its catalogue
+    assert PARTNET.splits == (
+        "train",
+        "val",
+        "test_unseen_instance",
+        "test_unseen_category",
+        "extra",
+    )
+    assert set(PARTNET.training) == {"train", "extra"} and PARTNET.test == (
+        "test_unseen_instance",
+        "test_unseen_category",
+    )
+    assert not set(TRAINING_SPLITS) & set(PARTNET.validation + PARTNET.test) and set(
+        CALIBRATION_SPLITS
+    ) == {"train_seen", "train"}
+    assert not set(GENERATED.splits) & set(
+        PARTNET.splits
+    )  # a trajectory's split names its catalogue
     with pytest.raises(ValueError, match="not splits of the partnet catalogue"):
         PARTNET.check_splits(("train_seen",), "--splits")
     with pytest.raises(ValueError, match="unknown catalogue"):
@@ -48,7 +70,9 @@ def test_catalogue_folders_follow_the_splits_file() -> None:
     listed = yaml.safe_load((root / "splits.yaml").read_text())
     for split in PARTNET.splits:
         found = catalogue_folders(root, (split,))
-        assert sorted(f.object_id for f in found) == sorted(k for k, v in listed.items() if v == split)
+        assert sorted(f.object_id for f in found) == sorted(
+            k for k, v in listed.items() if v == split
+        )
         assert {f.split for f in found} == {split}
     faucets = catalogue_folders(root, ("train", "val"), categories=("faucet",), per_category=1)
     assert [(f.split, f.category) for f in faucets] == [("train", "faucet"), ("val", "faucet")]
@@ -62,9 +86,24 @@ def test_an_unlisted_folder_is_refused_never_split_by_hash(tmp_path, capsys) -> 
     (root / "splits.yaml").write_text("'12': val\n")
     with pytest.raises(ValueError, match=r"\['77777'\] are in no split"):
         folder_objects(root, partnet_splits(root), listed_only=True)
-    assert folder_objects(root)[0].split in ("train_seen", "train_unseen_instance")  # without a catalogue: by hash
-    code = cli(["collect", "--out", str(tmp_path / "ds"), "--catalogue", "partnet", "--partnet-root", str(root),
-                "--objects", str(root), "--no-progress"])
+    assert folder_objects(root)[0].split in (
+        "train_seen",
+        "train_unseen_instance",
+    )  # without a catalogue: by hash
+    code = cli(
+        [
+            "collect",
+            "--out",
+            str(tmp_path / "ds"),
+            "--catalogue",
+            "partnet",
+            "--partnet-root",
+            str(root),
+            "--objects",
+            str(root),
+            "--no-progress",
+        ]
+    )
     assert code == 2 and "77777" in capsys.readouterr().err
     (root / "splits.yaml").write_text("'77777': somewhere\n")
     with pytest.raises(ValueError, match="somewhere"):
@@ -80,11 +119,42 @@ def collected(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("partnet") / "ds"
     prepared: list[list[Path]] = []
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr("actaim2.data.collect.prepare_objects", lambda folders, cache, workers: prepared.append(folders))
-        code = cli(["collect", "--out", str(out), "--catalogue", "partnet", "--partnet-root", str(root),
-                    "--splits", "train,val,test_unseen_instance", "--categories", "faucet", "--instances-per-category", "1",
-                    "--random", "1", "--grasp", "0", "--gmm", "0", "--workers", "0", "--render-path", "raycast",
-                    "--encoder-steps", "2", "--no-progress", "--hull-cache", str(out.parent / "hulls")])
+        patch.setattr(
+            "actaim2.data.collect.prepare_objects",
+            lambda folders, cache, workers: prepared.append(folders),
+        )
+        code = cli(
+            [
+                "collect",
+                "--out",
+                str(out),
+                "--catalogue",
+                "partnet",
+                "--partnet-root",
+                str(root),
+                "--splits",
+                "train,val,test_unseen_instance",
+                "--categories",
+                "faucet",
+                "--instances-per-category",
+                "1",
+                "--random",
+                "1",
+                "--grasp",
+                "0",
+                "--gmm",
+                "0",
+                "--workers",
+                "0",
+                "--render-path",
+                "raycast",
+                "--encoder-steps",
+                "2",
+                "--no-progress",
+                "--hull-cache",
+                str(out.parent / "hulls"),
+            ]
+        )
     assert code == 0
     assert len(prepared) == 1 and len(prepared[0]) == 3
     return out
@@ -99,26 +169,61 @@ def test_val_and_test_objects_never_reach_training(collected: Path, tmp_path, ca
     training = {e["object_id"] for e in entries if e["split"] in TRAINING_SPLITS}
     assert training and all(listed[o] == "train" for o in training)
     info = json.loads((collected / "dataset.json").read_text())
-    assert sorted(split for _, split in info["folders"]) == ["test_unseen_instance", "train", "val"]
+    assert sorted(split for _, split in info["folders"]) == [
+        "test_unseen_instance",
+        "train",
+        "val",
+    ]
     check_training_objects(entries, listed)
 
-    # a dataset whose index claims a val object is a training object is refused by `train --catalogue partnet`
+    # a dataset whose index claims a val object is a training object:
+    # `train --catalogue partnet` refuses it
     tampered = tmp_path / "tampered"
     shutil.copytree(collected, tampered)
     val_id = next(e["object_id"] for e in entries if e["split"] == "val")
-    lines = [json.loads(t) for t in (tampered / "index.jsonl").read_text().splitlines() if t.strip()]
-    (tampered / "index.jsonl").write_text("".join(json.dumps({**e, "split": "train"} if e["object_id"] == val_id else e) + "\n"
-                                                  for e in lines))
-    code = cli(["train", "--data", str(tampered), "--out", str(tmp_path / "run"), "--catalogue", "partnet",
-                "--partnet-root", str(shared_partnet()), "--no-progress"])
+    lines = [
+        json.loads(t) for t in (tampered / "index.jsonl").read_text().splitlines() if t.strip()
+    ]
+    (tampered / "index.jsonl").write_text(
+        "".join(
+            json.dumps({**e, "split": "train"} if e["object_id"] == val_id else e) + "\n"
+            for e in lines
+        )
+    )
+    code = cli(
+        [
+            "train",
+            "--data",
+            str(tampered),
+            "--out",
+            str(tmp_path / "run"),
+            "--catalogue",
+            "partnet",
+            "--partnet-root",
+            str(shared_partnet()),
+            "--no-progress",
+        ]
+    )
     assert code == 2 and f"{val_id} (stored as train, catalogue val)" in capsys.readouterr().out
     assert not (tmp_path / "run").exists()
 
 
 @pytest.mark.skipif(not COMMITTED.with_suffix(".json").is_file(), reason="no committed checkpoint")
 def test_validate_refuses_a_test_split_without_final(collected: Path, tmp_path, capsys) -> None:
-    args = ["validate", str(tmp_path / "v"), "--data", str(collected), "--checkpoint", str(COMMITTED), "--catalogue", "partnet",
-            "--partnet-root", str(shared_partnet()), "--lock", str(tmp_path / "protocol.lock")]
+    args = [
+        "validate",
+        str(tmp_path / "v"),
+        "--data",
+        str(collected),
+        "--checkpoint",
+        str(COMMITTED),
+        "--catalogue",
+        "partnet",
+        "--partnet-root",
+        str(shared_partnet()),
+        "--lock",
+        str(tmp_path / "protocol.lock"),
+    ]
     assert cli(args + ["--split", "test_unseen_instance"]) == 2
     out = capsys.readouterr().out
     assert "refuses test-split objects" in out and "--final" in out

@@ -39,11 +39,13 @@ def test_modes_need_separate_clusters() -> None:
 
 
 def test_modes_are_ranked_on_half_a_only() -> None:
-    # all samples: OPEN 3, CLOSE 2 (OPEN 1st); half A (even repetitions): CLOSE 2, OPEN 1 (CLOSE 1st)
+    # all samples: OPEN 3, CLOSE 2 (OPEN 1st);
+    # half A (even repetitions): CLOSE 2, OPEN 1 (CLOSE 1st)
     table = {0: [CLOSE, OPEN, CLOSE, OPEN], 1: [OPEN, None, None, None]}
     assert rank_modes(samples(table)) == [OPEN, CLOSE]
     first, second = object_mode_ssr(samples(table), 2, "half A")
-    assert (first.mode, first.group, first.rate.successes) == (CLOSE, 0, 0)  # group 0's half B only opens
+    # group 0's half B only opens
+    assert (first.mode, first.group, first.rate.successes) == (CLOSE, 0, 0)
     assert (second.mode, second.group, second.rate.successes) == (OPEN, 1, 0)
     # a mode seen in half B only is no mode: it cannot have been chosen for
     first, second = object_mode_ssr(samples({0: [CLOSE, OPEN, CLOSE, OPEN]}), 2, "B only")

@@ -1,5 +1,6 @@
-"""The protocol lock and ledger: test splits run only with --final under a matching lock, every such
-run is in the ledger, and no test object id is written into library code or configs."""
+"""The protocol lock and ledger: test splits run only with --final under a matching lock, every
+such run is in the ledger, and no test object id is written into library code or configs."""
+
 from __future__ import annotations
 
 import json
@@ -12,8 +13,16 @@ import yaml
 
 from actaim2.cli import main as cli
 from actaim2.eval.evalset import EVAL_SET_VERSION
-from actaim2.eval.protocol import (ProtocolLock, append_ledger, check_run, file_sha256, guarded_ids, protected,
-                                   read_ledger, success_rule)
+from actaim2.eval.protocol import (
+    ProtocolLock,
+    append_ledger,
+    check_run,
+    file_sha256,
+    guarded_ids,
+    protected,
+    read_ledger,
+    success_rule,
+)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "sim"))
 from partnet_shared import shared_partnet  # noqa: E402
@@ -24,9 +33,15 @@ SEED0, SEED1 = "a" * 64, "b" * 64
 
 
 def lock(**changes) -> ProtocolLock:
-    fields = dict(recipe="recipe.yaml", recipe_sha256="c" * 64, checkpoints=(SEED0, SEED1), eval_set_version=EVAL_SET_VERSION,
-                  samples_per_group=8, objects={"test_unseen_category": ("100154", "9968"), "test_unseen_instance": ("156",)},
-                  success_rule=success_rule())
+    fields = dict(
+        recipe="recipe.yaml",
+        recipe_sha256="c" * 64,
+        checkpoints=(SEED0, SEED1),
+        eval_set_version=EVAL_SET_VERSION,
+        samples_per_group=8,
+        objects={"test_unseen_category": ("100154", "9968"), "test_unseen_instance": ("156",)},
+        success_rule=success_rule(),
+    )
     return ProtocolLock(**{**fields, **changes})
 
 
@@ -37,9 +52,14 @@ def test_a_lock_checks_itself_and_round_trips(tmp_path) -> None:
     assert json.loads(path.read_text())["success_rule"]["fraction"] == 0.3
     with pytest.raises(ValueError, match="written once"):
         lock().write(path)
-    for bad, words in (({"checkpoints": ("d2ca9126",)}, "64 hex"), ({"checkpoints": (SEED0, SEED0)}, "same checkpoint"),
-                       ({"samples_per_group": 1}, "both halves"), ({"objects": {"val": ("149",)}}, "test splits"),
-                       ({"objects": {"test_unseen_instance": ()}}, "non-empty"), ({"recipe_sha256": "x"}, "sha256")):
+    for bad, words in (
+        ({"checkpoints": ("d2ca9126",)}, "64 hex"),
+        ({"checkpoints": (SEED0, SEED0)}, "same checkpoint"),
+        ({"samples_per_group": 1}, "both halves"),
+        ({"objects": {"val": ("149",)}}, "test splits"),
+        ({"objects": {"test_unseen_instance": ()}}, "non-empty"),
+        ({"recipe_sha256": "x"}, "sha256"),
+    ):
         with pytest.raises(ValueError, match=words):
             lock(**bad)
     with pytest.raises(ValueError, match="no protocol lock"):
@@ -50,11 +70,21 @@ def test_a_lock_checks_itself_and_round_trips(tmp_path) -> None:
 
 
 def test_test_objects_are_known_by_split_or_by_folder(tmp_path) -> None:
-    (tmp_path / "splits.yaml").write_text("'156': test_unseen_instance\n'149': val\n'9968': test_unseen_category\n")
+    (tmp_path / "splits.yaml").write_text(
+        "'156': test_unseen_instance\n'149': val\n'9968': test_unseen_category\n"
+    )
     ids = guarded_ids([tmp_path / "splits.yaml", tmp_path / "missing.yaml"])
     assert ids == {"156": "test_unseen_instance", "9968": "test_unseen_category"}
-    objects = [("folders", "156"), ("val", "149"), ("train_seen", ""), ("test_unseen_category", "100154")]
-    assert protected(objects, ids) == {"test_unseen_instance": {"156"}, "test_unseen_category": {"100154"}}
+    objects = [
+        ("folders", "156"),
+        ("val", "149"),
+        ("train_seen", ""),
+        ("test_unseen_category", "100154"),
+    ]
+    assert protected(objects, ids) == {
+        "test_unseen_instance": {"156"},
+        "test_unseen_category": {"100154"},
+    }
     assert protected([("test_unseen_category", "")], {}) == {"test_unseen_category": set()}
     assert protected([("val", "149"), ("heldout_category", "")], ids) == {}
 
@@ -71,11 +101,17 @@ def test_a_final_run_must_match_the_lock(tmp_path) -> None:
     assert check_run("evaluate", {}, False, path, [SEED0]) is None
     lock().write(path)
     assert check_run("evaluate", guarded, True, path, [SEED1], EVAL_SET_VERSION, 8) == lock()
-    for args, words in ((([SEED0], EVAL_SET_VERSION + 1, 8), "evaluation set version"), (([SEED0], EVAL_SET_VERSION, 4), "4 samples"),
-                        ((["e" * 64], EVAL_SET_VERSION, 8), "not among the lock's seeds"), (([], None, None), "none")):
+    for args, words in (
+        (([SEED0], EVAL_SET_VERSION + 1, 8), "evaluation set version"),
+        (([SEED0], EVAL_SET_VERSION, 4), "4 samples"),
+        ((["e" * 64], EVAL_SET_VERSION, 8), "not among the lock's seeds"),
+        (([], None, None), "none"),
+    ):
         with pytest.raises(ValueError, match=words):
             check_run("evaluate", guarded, True, path, *args)
-    with pytest.raises(ValueError, match=r"missing \['9968'\]"):  # a test object dropped after the lock
+    with pytest.raises(
+        ValueError, match=r"missing \['9968'\]"
+    ):  # a test object dropped after the lock
         check_run("evaluate", {"test_unseen_category": {"100154"}}, True, path, [SEED0])
     with pytest.raises(ValueError, match=r"not locked \['101'\]"):
         check_run("validate", {"test_unseen_instance": {"156", "101"}}, True, path, [SEED0])
@@ -91,12 +127,16 @@ def test_every_final_run_is_in_the_ledger(tmp_path, capsys) -> None:
     assert cli(["protocol", "ledger", "--ledger", str(ledger)]) == 0
     assert capsys.readouterr().out.startswith("0 --final run(s)")
     for tool in ("evaluate", "validate"):
-        append_ledger(ledger, lock(), tool, "runs/x", {"test_unseen_instance": {"156"}}, [SEED0], 120)
+        append_ledger(
+            ledger, lock(), tool, "runs/x", {"test_unseen_instance": {"156"}}, [SEED0], 120
+        )
     runs = read_ledger(ledger)
-    assert [r["tool"] for r in runs] == ["evaluate", "validate"] and runs[0]["lock_sha256"] == lock().sha256
+    assert [r["tool"] for r in runs] == ["evaluate", "validate"] and runs[0][
+        "lock_sha256"
+    ] == lock().sha256
     assert runs[0]["splits"] == {"test_unseen_instance": ["156"]} and runs[1]["samples"] == 120
     assert cli(["protocol", "ledger", "--ledger", str(ledger)]) == 0
-    assert capsys.readouterr().out.startswith("2 --final run(s)") 
+    assert capsys.readouterr().out.startswith("2 --final run(s)")
     ledger.write_text(ledger.read_text() + "not json\n")
     with pytest.raises(ValueError, match=":3: not a JSON line"):
         read_ledger(ledger)
@@ -108,10 +148,23 @@ def test_protocol_lock_command_writes_the_catalogues_test_objects(tmp_path, caps
     recipe = tmp_path / "recipe.yaml"
     recipe.write_text("config: cpu_default\n")
     path = tmp_path / "protocol.lock"
-    base = ["protocol", "lock", "--recipe", str(recipe), "--checkpoint", str(COMMITTED), "--lock", str(path),
-            "--partnet-root", str(root)]
+    base = [
+        "protocol",
+        "lock",
+        "--recipe",
+        str(recipe),
+        "--checkpoint",
+        str(COMMITTED),
+        "--lock",
+        str(path),
+        "--partnet-root",
+        str(root),
+    ]
     assert cli(base) == 2 and "--catalogue partnet" in capsys.readouterr().err
-    assert cli(base + ["--catalogue", "partnet", "--splits", "val"]) == 2 and "test splits only" in capsys.readouterr().err
+    assert (
+        cli(base + ["--catalogue", "partnet", "--splits", "val"]) == 2
+        and "test splits only" in capsys.readouterr().err
+    )
     assert cli(base + ["--catalogue", "partnet"]) == 0
     written = ProtocolLock.read(path)
     listed = yaml.safe_load((root / "splits.yaml").read_text())
@@ -119,23 +172,75 @@ def test_protocol_lock_command_writes_the_catalogues_test_objects(tmp_path, caps
         assert sorted(written.objects[split]) == sorted(k for k, v in listed.items() if v == split)
     digest = json.loads(COMMITTED.with_suffix(".json").read_text())["weights_sha256"]
     assert written.checkpoints == (digest,) and written.recipe_sha256 == file_sha256(recipe)
-    assert (written.eval_set_version, written.samples_per_group, written.success_rule) == (EVAL_SET_VERSION, 8, success_rule())
+    assert (written.eval_set_version, written.samples_per_group, written.success_rule) == (
+        EVAL_SET_VERSION,
+        8,
+        success_rule(),
+    )
 
 
 def test_evaluate_refuses_a_test_split_without_final_and_lock(tmp_path, capsys) -> None:
     root = shared_partnet()
-    base = ["evaluate", "--out", str(tmp_path / "eval"), "--methods", "random", "--render-path", "raycast",
-            "--lock", str(tmp_path / "protocol.lock"), "--ledger", str(tmp_path / "ledger.jsonl"), "--no-progress"]
-    assert cli(base + ["--catalogue", "partnet", "--partnet-root", str(root), "--splits", "test_unseen_category"]) == 2
+    base = [
+        "evaluate",
+        "--out",
+        str(tmp_path / "eval"),
+        "--methods",
+        "random",
+        "--render-path",
+        "raycast",
+        "--lock",
+        str(tmp_path / "protocol.lock"),
+        "--ledger",
+        str(tmp_path / "ledger.jsonl"),
+        "--no-progress",
+    ]
+    assert (
+        cli(
+            base
+            + [
+                "--catalogue",
+                "partnet",
+                "--partnet-root",
+                str(root),
+                "--splits",
+                "test_unseen_category",
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err
-    assert "refuses test-split objects" in err and "test_unseen_category" in err and "--final" in err
+    assert (
+        "refuses test-split objects" in err and "test_unseen_category" in err and "--final" in err
+    )
     # a test object given as a folder is known by the splits file beside it
     assert cli(base + ["--splits", "", "--objects", str(root / "156")]) == 2
     assert "test_unseen_instance: 156" in capsys.readouterr().err
-    assert cli(base + ["--catalogue", "partnet", "--partnet-root", str(root), "--splits", "test_unseen_instance",
-                       "--final", "--per-group", "8"]) == 2
+    assert (
+        cli(
+            base
+            + [
+                "--catalogue",
+                "partnet",
+                "--partnet-root",
+                str(root),
+                "--splits",
+                "test_unseen_instance",
+                "--final",
+                "--per-group",
+                "8",
+            ]
+        )
+        == 2
+    )
     assert "no protocol lock" in capsys.readouterr().err
-    assert cli(base + ["--catalogue", "partnet", "--partnet-root", str(root), "--splits", "val", "--final"]) == 2
+    assert (
+        cli(
+            base
+            + ["--catalogue", "partnet", "--partnet-root", str(root), "--splits", "val", "--final"]
+        )
+        == 2
+    )
     assert "for test splits" in capsys.readouterr().err
     assert not (tmp_path / "eval").exists() and not (tmp_path / "ledger.jsonl").exists()
 
@@ -148,6 +253,12 @@ def test_no_test_object_id_in_library_code_or_configs() -> None:
     found = []
     for place in places:
         for path in place.rglob("*"):
-            if path.suffix in (".py", ".yaml", ".yml", ".json", ".sh", ".cfg", ".toml", ".xml") and path.is_file():
-                found += [f"{path.relative_to(REPO)}: {m.group(0)}" for m in pattern.finditer(path.read_text(errors="replace"))]
+            if (
+                path.suffix in (".py", ".yaml", ".yml", ".json", ".sh", ".cfg", ".toml", ".xml")
+                and path.is_file()
+            ):
+                found += [
+                    f"{path.relative_to(REPO)}: {m.group(0)}"
+                    for m in pattern.finditer(path.read_text(errors="replace"))
+                ]
     assert not found, found

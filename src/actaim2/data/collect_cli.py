@@ -5,8 +5,8 @@ Examples:
     actaim2 collect --out data/small --instances-per-category 1 --random 10 --grasp 10 --gmm 5
     actaim2 collect --out data/ds --vgg19-weights vgg19-dcbb9e9d.pth         # E = a user's VGG-19
     actaim2 collect --out data/pm --objects ~/partnet-mobility --object-splits splits.yaml   # real folders
-    actaim2 collect --out data/pm --catalogue partnet --partnet-root ~/partnet-mobility     # its train split
-    actaim2 collect --out data/pm --catalogue partnet --splits train,extra --object storage_furniture:0
+    actaim2 collect --out data/pm --catalogue partnet --partnet-root ~/pm        # its train split
+    actaim2 collect --out data/pm --catalogue partnet --splits train,val --object table:0
     actaim2 collect --out data/ds --ray auto --workers 32                        # on a Ray cluster
     actaim2 collect --out data/ds --actions-per-placement 4                      # 4 trajectories per reset
     actaim2 collect --out data/ds --splits train_seen,train_extra                # twice the training objects
@@ -19,30 +19,38 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
+if TYPE_CHECKING:
+    from actaim2.data.real_objects import FolderObject
 
 
 def add_catalogue_arguments(parser: argparse.ArgumentParser) -> None:
     """``--catalogue`` and ``--partnet-root``, shared by collect, train, evaluate and validate."""
     parser.add_argument("--catalogue", choices=["generated", "partnet"], default="generated",
-                        help="where objects and split names come from: the generated catalogue (train_seen, "
-                             "train_unseen_instance, heldout_category, train_extra) or real PartNet-Mobility folders "
-                             "split by the splits.yaml of --partnet-root (train, val, test_unseen_instance, "
+                        help="where objects and split names come from: the generated catalogue "
+                             "(train_seen, train_unseen_instance, heldout_category, train_extra) "
+                             "or "
+                             "real PartNet-Mobility folders split by the splits.yaml of "
+                             "--partnet-root (train, val, test_unseen_instance, "
                              "test_unseen_category, extra; actaim2.data.real_objects)")
     parser.add_argument("--partnet-root", type=Path,
-                        help="the partnet catalogue's folder (object folders + splits.yaml); default $ACTAIM2_PARTNET")
+                        help="the partnet catalogue's folder (object folders + splits.yaml); "
+                             "default $ACTAIM2_PARTNET")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, required=True, help="dataset folder (created, or resumed if it exists)")
     add_catalogue_arguments(parser)
-    parser.add_argument("--splits", help="the catalogue's splits to collect on (comma separated; default: generated "
-                                         "train_seen,train_unseen_instance,heldout_category; partnet train)")
+    parser.add_argument("--splits", help="the catalogue's splits to collect on (comma separated; "
+                                         "default: generated train_seen,train_unseen_instance,"
+                                         "heldout_category; partnet train)")
     parser.add_argument("--categories", default="", help="only these categories (comma separated; default all in the splits)")
     parser.add_argument("--instances-per-category", type=int, default=0, help="only the first N instances of each category per split (0 = all)")
     parser.add_argument("--object", action="append", default=[], metavar="CATEGORY:INSTANCE",
-                        help="collect on exactly these generated objects (repeatable; overrides --splits/--categories "
-                             "of the generated catalogue; with --catalogue partnet they are added to its objects)")
+                        help="collect on exactly these generated objects (repeatable; overrides "
+                             "--splits/--categories of the generated catalogue; with --catalogue "
+                             "partnet they are added to its objects)")
     parser.add_argument("--random", type=int, default=50, help="random-sampling trajectories per object")
     parser.add_argument("--grasp", type=int, default=50, help="heuristic-grasp trajectories per object")
     parser.add_argument("--gmm", type=int, default=50, help="GMM-adaptive trajectories per object")
@@ -69,10 +77,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--encoder-steps", type=int, default=800, help="training steps of the default encoder")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
     parser.add_argument("--objects", type=Path, help="real PartNet-Mobility object folders (a folder of them, or one) instead of "
-                                                     "the catalogue's splits (--object adds catalogue objects); hulls prepared first")
-    parser.add_argument("--object-splits", type=Path, help="YAML 'folder name: split' (either catalogue's split names) for "
-                                                           "--objects; other folders split by category, or refused under "
-                                                           "--catalogue partnet (default there: its splits.yaml)")
+                                                     "the catalogue (--object adds catalogue objects); hulls prepared first")
+    parser.add_argument("--object-splits", type=Path,
+                        help="YAML 'folder name: split' (either catalogue's split names) for "
+                             "--objects; other folders split by category, or refused under "
+                             "--catalogue partnet (default there: its splits.yaml)")
     parser.add_argument("--hull-cache", type=Path, help="convex decompositions of --objects (default ~/.cache/actaim2/hulls)")
     parser.add_argument("--domain-randomisation", metavar="YAML|default",
                         help="randomise lighting, colours, placement, depth noise and extrinsics per reset "
@@ -80,7 +89,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _objects(args: argparse.Namespace) -> list[tuple[str, int]]:
-    """The generated catalogue's objects: ``--object``, else its ``--splits`` (none under partnet)."""
+    """The generated catalogue's objects: ``--object``, else its ``--splits`` (none under
+    partnet)."""
     from actaim2.data.splits import GENERATED
     from actaim2.sim.objects.catalog import split_instances
 
@@ -109,15 +119,17 @@ def _splits(args: argparse.Namespace) -> tuple[str, ...]:
     from actaim2.data.splits import catalogue
 
     chosen = catalogue(args.catalogue)
-    names = tuple(s for s in args.splits.split(",") if s) if args.splits is not None else chosen.default_collect
+    if args.splits is None:
+        return chosen.default_collect
+    names = tuple(s for s in args.splits.split(",") if s)
     return chosen.check_splits(names, "--splits")
 
 
-def _folders(args: argparse.Namespace) -> list:
+def _folders(args: argparse.Namespace) -> list[FolderObject]:
     """Real object folders: ``--objects`` (split by ``--object-splits``, or under partnet by its
     splits file), else the partnet catalogue's ``--splits``."""
-    from actaim2.data.real_objects import (catalogue_folders, folder_objects, partnet_root, partnet_splits,
-                                           read_object_splits)
+    from actaim2.data.real_objects import (catalogue_folders, folder_objects, partnet_root,
+                                           partnet_splits, read_object_splits)
 
     partnet = args.catalogue == "partnet"
     if args.objects is not None:
@@ -129,7 +141,8 @@ def _folders(args: argparse.Namespace) -> list:
     if not partnet:
         return []
     categories = tuple(c for c in args.categories.split(",") if c)
-    return catalogue_folders(partnet_root(args.partnet_root), _splits(args), categories, args.instances_per_category)
+    return catalogue_folders(partnet_root(args.partnet_root), _splits(args), categories,
+                             args.instances_per_category)
 
 
 def main(args: argparse.Namespace) -> int:

@@ -266,8 +266,8 @@ def visual_labels(entries: list[dict], motions: dict[str, list[PartMotion]],
     reaches = reaches if reaches is not None else object_reaches(entries, motions)
     calib = [k for k, e in enumerate(entries) if e["split"] in calibration_splits]
     if not calib:
-        raise ValueError(f"no trajectories in calibration split(s) {list(calibration_splits)} to calibrate the "
-                         f"success label on")
+        raise ValueError(f"no trajectories in calibration split(s) {list(calibration_splits)} to "
+                         f"calibrate the success label on")
     model = calibrate([parts[k] for k in calib], np.array([entries[k]["gt_success"] for k in calib], dtype=bool),
                       [reaches[k] for k in calib])
     return success_scores(parts, model or DEFAULT_MODEL, reaches), model or DEFAULT_MODEL, model is not None
@@ -280,11 +280,12 @@ def _report(labels: np.ndarray, gt: np.ndarray, splits: np.ndarray, calib: np.nd
     }
 
 
-def label_dataset(root: str | Path, encoder_path: str | Path, calibration_splits: tuple[str, ...] = CALIBRATION_SPLITS,
-                  workers: int = 0,
+def label_dataset(root: str | Path, encoder_path: str | Path,
+                  calibration_splits: tuple[str, ...] = CALIBRATION_SPLITS, workers: int = 0,
                   motion_config: MotionConfig = MotionConfig(), reach_config: ReachConfig = ReachConfig(),
                   show_progress: bool = True) -> dict:
-    """Measure motions, embed, calibrate on ``calibration_splits``, write labels; returns the report."""
+    """Measure motions, embed, calibrate on ``calibration_splits``, write labels; returns the
+    report."""
     reader = DatasetReader(root)
     if not reader.entries:
         raise ValueError(f"{root} holds no trajectories to label")

@@ -20,6 +20,7 @@ splits its own objects:
 * any other category (the generated held-out ones, and categories it does not have, such as
   ``oven``): ``heldout_category``.
 """
+
 from __future__ import annotations
 
 import os
@@ -64,7 +65,9 @@ def read_object_splits(path: Path) -> dict[str, str]:
     except (OSError, yaml.YAMLError) as error:
         raise ValueError(f"{path}: cannot read the object splits ({error})") from None
     if not isinstance(data, dict):
-        raise ValueError(f"{path}: expected a mapping 'folder name: split', got {type(data).__name__}")
+        raise ValueError(
+            f"{path}: expected a mapping 'folder name: split', got {type(data).__name__}"
+        )
     bad = {str(k): v for k, v in data.items() if v not in SPLIT_NAMES}
     if bad:
         raise ValueError(f"{path}: splits must be one of {SPLIT_NAMES}; got {bad}")
@@ -76,24 +79,34 @@ def partnet_root(given: Path | None = None) -> Path:
     Raises ValueError when neither is set or the folder has no splits file."""
     text = str(given) if given is not None else os.environ.get(PARTNET_ROOT_ENV, "")
     if not text:
-        raise ValueError(f"the partnet catalogue needs its folder: pass --partnet-root DIR (or set {PARTNET_ROOT_ENV}) "
-                         f"to a folder of PartNet-Mobility objects with a {SPLITS_FILE}")
+        raise ValueError(
+            "the partnet catalogue needs its folder: pass --partnet-root DIR (or set "
+            f"{PARTNET_ROOT_ENV}) "
+            f"to a folder of PartNet-Mobility objects with a {SPLITS_FILE}"
+        )
     root = Path(text).expanduser()
     if not (root / SPLITS_FILE).is_file():
-        raise ValueError(f"{root}: no {SPLITS_FILE} (folder name: split) there, so no partnet catalogue")
+        raise ValueError(
+            f"{root}: no {SPLITS_FILE} (folder name: split) there, so no partnet catalogue"
+        )
     return root
 
 
 def partnet_splits(root: Path) -> dict[str, str]:
-    """``folder name -> split`` of the partnet catalogue at ``root``; only that catalogue's names."""
+    """``folder name -> split`` of the partnet catalogue at ``root``; only that catalogue's
+    split names."""
     splits = read_object_splits(root / SPLITS_FILE)
     bad = {k: v for k, v in splits.items() if v not in PARTNET.splits}
     if bad:
-        raise ValueError(f"{root / SPLITS_FILE}: the partnet catalogue's splits are {PARTNET.splits}; got {bad}")
+        raise ValueError(
+            f"{root / SPLITS_FILE}: the partnet catalogue's splits are {PARTNET.splits}; got {bad}"
+        )
     return splits
 
 
-def folder_objects(path: Path, splits: dict[str, str] | None = None, listed_only: bool = False) -> list[FolderObject]:
+def folder_objects(
+    path: Path, splits: dict[str, str] | None = None, listed_only: bool = False
+) -> list[FolderObject]:
     """The object folders under ``path`` with their categories and splits (module docstring).
     ``listed_only`` (the partnet catalogue): a folder ``splits`` does not name is a ValueError.
     Raises ObjectLoadError (a ValueError) for a folder that cannot be read."""
@@ -104,8 +117,11 @@ def folder_objects(path: Path, splits: dict[str, str] | None = None, listed_only
     folders = find_object_folders(path)
     unlisted = [f.name for f in folders if f.name not in splits]
     if listed_only and unlisted:
-        raise ValueError(f"{path}: folder(s) {unlisted} are in no split of the partnet catalogue's splits file: "
-                         f"add them to it (folder name: split) or leave them out; they are never split by hash")
+        raise ValueError(
+            f"{path}: folder(s) {unlisted} are in no split of the partnet catalogue's splits "
+            "file: "
+            f"add them to it (folder name: split) or leave them out; they are never split by hash"
+        )
     out = []
     for folder in folders:
         info = read_object_folder(folder)
@@ -114,10 +130,15 @@ def folder_objects(path: Path, splits: dict[str, str] | None = None, listed_only
     return out
 
 
-def catalogue_folders(root: Path, split_names: tuple[str, ...], categories: tuple[str, ...] = (),
-                      per_category: int = 0) -> list[FolderObject]:
+def catalogue_folders(
+    root: Path,
+    split_names: tuple[str, ...],
+    categories: tuple[str, ...] = (),
+    per_category: int = 0,
+) -> list[FolderObject]:
     """The partnet catalogue's objects of ``split_names`` at ``root``, by split then folder name;
-    only ``categories`` when given, the first ``per_category`` of each category and split when > 0."""
+    only ``categories`` when given, the first ``per_category`` of each category and split when
+    > 0."""
     from actaim2.sim.objects.partnet import read_object_folder
 
     PARTNET.check_splits(split_names, "the partnet catalogue")
@@ -127,7 +148,10 @@ def catalogue_folders(root: Path, split_names: tuple[str, ...], categories: tupl
         names = sorted((n for n, s in splits.items() if s == split), key=lambda n: (len(n), n))
         missing = [n for n in names if not (root / n).is_dir()]
         if missing:
-            raise ValueError(f"{root}: {SPLITS_FILE} lists folder(s) {missing} of split {split} that are not there")
+            raise ValueError(
+                f"{root}: {SPLITS_FILE} lists folder(s) {missing} of split {split} that are not "
+                "there"
+            )
         taken: dict[str, int] = {}
         for name in names:
             info = read_object_folder(root / name)
@@ -144,9 +168,19 @@ def check_training_objects(entries: list[dict], splits: dict[str, str]) -> None:
     (a partnet catalogue's splits file) puts in a split the models must not learn from."""
     from actaim2.data.splits import TRAINING_SPLITS
 
-    leaked = sorted({(e["object_id"], e["split"], splits[e["object_id"]]) for e in entries
-                     if e["split"] in TRAINING_SPLITS and e.get("instance", -1) < 0
-                     and splits.get(e["object_id"], e["split"]) not in TRAINING_SPLITS})
+    leaked = sorted(
+        {
+            (e["object_id"], e["split"], splits[e["object_id"]])
+            for e in entries
+            if e["split"] in TRAINING_SPLITS
+            and e.get("instance", -1) < 0
+            and splits.get(e["object_id"], e["split"]) not in TRAINING_SPLITS
+        }
+    )
     if leaked:
-        named = ", ".join(f"{oid} (stored as {stored}, catalogue {listed})" for oid, stored, listed in leaked)
-        raise ValueError(f"the dataset trains on object(s) the partnet catalogue holds out: {named}")
+        named = ", ".join(
+            f"{oid} (stored as {stored}, catalogue {listed})" for oid, stored, listed in leaked
+        )
+        raise ValueError(
+            f"the dataset trains on object(s) the partnet catalogue holds out: {named}"
+        )

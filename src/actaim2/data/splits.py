@@ -49,12 +49,14 @@ class Catalogue:
     default_evaluate: tuple[str, ...]  # what `actaim2 evaluate` and `validate` measure by default
 
     def __post_init__(self) -> None:
-        named = set(self.training) | set(self.validation) | set(self.test) | {self.calibration}
-        if not named <= set(self.splits) or not set(self.default_collect + self.default_evaluate) <= set(self.splits):
+        named = {*self.training, *self.validation, *self.test, self.calibration,
+                 *self.default_collect, *self.default_evaluate}
+        if not named <= set(self.splits):
             raise ValueError(f"catalogue {self.name}: a role names a split outside {self.splits}")
-        if set(self.training) & set(self.validation + self.test) or self.calibration not in self.training:
-            raise ValueError(f"catalogue {self.name}: training splits overlap held-out ones, or calibration is not "
-                             f"a training split")
+        held_out = set(self.validation + self.test)
+        if held_out & set(self.training) or self.calibration not in self.training:
+            raise ValueError(f"catalogue {self.name}: training splits overlap held-out ones, or "
+                             f"calibration is not a training split")
 
     def check_splits(self, names: tuple[str, ...], what: str) -> tuple[str, ...]:
         """``names`` if each is a split of this catalogue; ValueError naming the others."""
@@ -65,15 +67,17 @@ class Catalogue:
         return names
 
 
-GENERATED = Catalogue("generated", (TRAIN, UNSEEN_INSTANCE, UNSEEN_CATEGORY, EXTRA_TRAIN, "real_robot"),
-                      training=(TRAIN, EXTRA_TRAIN), calibration=TRAIN, validation=(), test=(),
-                      default_collect=(TRAIN, UNSEEN_INSTANCE, UNSEEN_CATEGORY),
-                      default_evaluate=(TRAIN, UNSEEN_INSTANCE, UNSEEN_CATEGORY))
-PARTNET = Catalogue("partnet", (PARTNET_TRAIN, PARTNET_VAL, PARTNET_TEST_INSTANCE, PARTNET_TEST_CATEGORY,
-                                PARTNET_EXTRA),
-                    training=(PARTNET_TRAIN, PARTNET_EXTRA), calibration=PARTNET_TRAIN, validation=(PARTNET_VAL,),
-                    test=(PARTNET_TEST_INSTANCE, PARTNET_TEST_CATEGORY), default_collect=(PARTNET_TRAIN,),
-                    default_evaluate=(PARTNET_VAL,))
+GENERATED = Catalogue(
+    "generated", (TRAIN, UNSEEN_INSTANCE, UNSEEN_CATEGORY, EXTRA_TRAIN, "real_robot"),
+    training=(TRAIN, EXTRA_TRAIN), calibration=TRAIN, validation=(), test=(),
+    default_collect=(TRAIN, UNSEEN_INSTANCE, UNSEEN_CATEGORY),
+    default_evaluate=(TRAIN, UNSEEN_INSTANCE, UNSEEN_CATEGORY))
+PARTNET = Catalogue(
+    "partnet",
+    (PARTNET_TRAIN, PARTNET_VAL, PARTNET_TEST_INSTANCE, PARTNET_TEST_CATEGORY, PARTNET_EXTRA),
+    training=(PARTNET_TRAIN, PARTNET_EXTRA), calibration=PARTNET_TRAIN, validation=(PARTNET_VAL,),
+    test=(PARTNET_TEST_INSTANCE, PARTNET_TEST_CATEGORY), default_collect=(PARTNET_TRAIN,),
+    default_evaluate=(PARTNET_VAL,))
 CATALOGUES = {c.name: c for c in (GENERATED, PARTNET)}
 TRAINING_SPLITS = GENERATED.training + PARTNET.training  # what the models train on
 CALIBRATION_SPLITS = (GENERATED.calibration, PARTNET.calibration)
@@ -107,4 +111,5 @@ def check_no_leak(entries: list[dict]) -> None:
     held_out = {UNSEEN_CATEGORY, PARTNET_TEST_CATEGORY}
     for category, splits in by_category.items():
         if splits & held_out and splits - held_out:
-            raise ValueError(f"category {category!r} is held out but also in splits {sorted(splits - held_out)}")
+            raise ValueError(f"category {category!r} is held out but also in splits "
+                             f"{sorted(splits - held_out)}")

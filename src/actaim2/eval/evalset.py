@@ -29,8 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from actaim2.data.splits import (PARTNET, PARTNET_EXTRA, PARTNET_TEST_CATEGORY, PARTNET_TEST_INSTANCE, PARTNET_TRAIN,
-                                  PARTNET_VAL, TRAIN, UNSEEN_CATEGORY, UNSEEN_INSTANCE)
+from actaim2.data.splits import (PARTNET, PARTNET_EXTRA, PARTNET_TEST_CATEGORY,
+                                  PARTNET_TEST_INSTANCE, PARTNET_TRAIN, PARTNET_VAL, TRAIN,
+                                  UNSEEN_CATEGORY, UNSEEN_INSTANCE)
 
 EVAL_SET_VERSION = 1
 EVAL_SEED_BASE = 2**31  # collection's reset seeds are all below this
@@ -38,8 +39,10 @@ FOLDERS = "folders"
 SPLITS = (TRAIN, UNSEEN_INSTANCE, UNSEEN_CATEGORY)
 SPLIT_TITLES = {TRAIN: "Seen objects", UNSEEN_INSTANCE: "Unseen instances", UNSEEN_CATEGORY: "Unseen categories",
                 FOLDERS: "PartNet-Mobility folders", PARTNET_TRAIN: "Real, seen objects (train)",
-                PARTNET_VAL: "Real, validation (val)", PARTNET_TEST_INSTANCE: "Real, unseen instances (test)",
-                PARTNET_TEST_CATEGORY: "Real, unseen categories (test)", PARTNET_EXTRA: "Real, other categories (extra)"}
+                PARTNET_VAL: "Real, validation (val)",
+                PARTNET_TEST_INSTANCE: "Real, unseen instances (test)",
+                PARTNET_TEST_CATEGORY: "Real, unseen categories (test)",
+                PARTNET_EXTRA: "Real, other categories (extra)"}
 TABLE_SPLITS = (*SPLITS, *PARTNET.splits, FOLDERS)  # the order tables show splits in
 _RESET, _SAMPLE, _PSEUDO = 1, 2, 3
 
@@ -111,7 +114,8 @@ def folder_objects(root: str | Path) -> list[EvalObject]:
 
 def partnet_objects(root: str | Path, splits: tuple[str, ...], instances_per_category: int = 0,
                     categories: tuple[str, ...] = ()) -> list[EvalObject]:
-    """The partnet catalogue's objects of ``splits`` at ``root`` (``data.real_objects.catalogue_folders``)."""
+    """The partnet catalogue's objects of ``splits`` at ``root``
+    (``data.real_objects.catalogue_folders``)."""
     from actaim2.data.real_objects import catalogue_folders
 
     return [EvalObject(f.split, f.category, -1, str(Path(f.folder).resolve()))

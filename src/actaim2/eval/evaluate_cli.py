@@ -7,9 +7,10 @@ Examples:
         --data data/ds --objects ~/partnet-mobility/148 --workers 2
     actaim2 evaluate --out runs/eval --checkpoint runs/cpu/policy --ray auto --workers 16          # a Ray cluster
     actaim2 evaluate --out runs/eval --checkpoint runs/cpu/policy --data data/ds --per-group 16    # Mode SSR on 4x the samples
-    actaim2 evaluate --out runs/val --checkpoint runs/pm/policy --data data/pm --catalogue partnet   # real objects, val
-    actaim2 evaluate --out runs/test --checkpoint runs/s0/policy --data data/pm --catalogue partnet \
-        --splits test_unseen_instance,test_unseen_category --per-group 8 --final   # under results/protocol.lock
+    actaim2 evaluate --out runs/val --checkpoint runs/pm/policy --data data/pm --catalogue partnet
+    actaim2 evaluate --out runs/test --checkpoint runs/s0/policy --data data/pm \\
+        --catalogue partnet --splits test_unseen_instance,test_unseen_category --per-group 8 \\
+        --final                                   # test splits: under results/protocol.lock
 
 Rows: ActAIM2 (--checkpoint), Goal-RVT (--goal-rvt, default <checkpoint folder>/goal_rvt, with
 the dataset's encoder), VQVAE-RVT (--vqvae), ActAIM's CVAE (--cvae), Data Collection (--data:
@@ -58,8 +59,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--methods", default="", help="only these rows (comma separated: actaim2, data_collection, random, "
                                                       "goal_rvt, vqvae_rvt, actaim_cvae, actaim2_depth, actaim2_single_view)")
     add_catalogue_arguments(parser)
-    parser.add_argument("--splits", help="the catalogue's splits to evaluate on ('' = none, with --objects; default: "
-                                         "generated train_seen,train_unseen_instance,heldout_category; partnet val)")
+    parser.add_argument("--splits", help="the catalogue's splits to evaluate on ('' = none, with "
+                                         "--objects; default: generated train_seen,"
+                                         "train_unseen_instance,heldout_category; partnet val)")
     add_protocol_arguments(parser)
     parser.add_argument("--objects", type=Path, help="PartNet-Mobility folder(s) (a folder with mobility.urdf, or a folder of them): an extra split")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (0 = in this process); Ray actors with --ray")
@@ -163,9 +165,11 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.data.splits import GENERATED, catalogue
     from actaim2.eval.checkpoints import describe, perception_of
     from actaim2.eval.data_collection import data_collection_samplers
-    from actaim2.eval.evalset import EVAL_SET_VERSION, catalogue_objects, folder_objects, partnet_objects
+    from actaim2.eval.evalset import (EVAL_SET_VERSION, catalogue_objects, folder_objects,
+                                      partnet_objects)
     from actaim2.eval.methods import ABLATIONS, PSEUDO_GROUPING, ablation_problem
-    from actaim2.eval.protocol import append_ledger, check_run as check_protocol, guarded_ids, protected
+    from actaim2.eval.protocol import append_ledger, guarded_ids, protected
+    from actaim2.eval.protocol import check_run as check_protocol
     from actaim2.eval.results import ResultLog, RunMismatchError, check_run
     from actaim2.eval.tables import report
     from actaim2.eval.tasks import plan_tasks
@@ -201,13 +205,14 @@ def main(args: argparse.Namespace) -> int:
                 raise ValueError(f"{m}'s checkpoint was trained on rig {c.rig} (cube {c.center}, {c.half_extent}), "
                                  f"{next(iter(configs))}'s on {perception.rig} ({perception.center}, {perception.half_extent})")
         chosen = catalogue(args.catalogue)
-        splits = tuple(s for s in args.splits.split(",") if s) if args.splits is not None else chosen.default_evaluate
-        chosen.check_splits(splits, "--splits")
+        splits = chosen.default_evaluate
+        if args.splits is not None:
+            splits = chosen.check_splits(tuple(s for s in args.splits.split(",") if s), "--splits")
         if chosen is GENERATED:
             objects = catalogue_objects(splits, preset.instances_per_category, preset.categories)
         else:
-            objects = partnet_objects(partnet_root(args.partnet_root), splits, preset.instances_per_category,
-                                      preset.categories)
+            objects = partnet_objects(partnet_root(args.partnet_root), splits,
+                                      preset.instances_per_category, preset.categories)
         if args.objects is not None:
             objects += folder_objects(args.objects)
         if not objects:
@@ -216,7 +221,8 @@ def main(args: argparse.Namespace) -> int:
                             guarded_ids(splits_files(args, args.objects)))
         locked = [described["actaim2"]["weights_sha256"]] if "actaim2" in described else []
         if args.final and preset.counts.per_cluster != preset.counts.baseline_per_group:
-            raise ValueError("--final: ActAIM2 and the grouped baselines need as many samples per group: pass --per-group N")
+            raise ValueError("--final: ActAIM2 and the grouped baselines need as many samples per "
+                             "group: pass --per-group N")
         lock = check_protocol("evaluate", guarded, args.final, args.lock, locked, EVAL_SET_VERSION,
                               preset.counts.per_cluster)
         render_path = _render_path(perception, args)

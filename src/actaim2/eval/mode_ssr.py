@@ -69,7 +69,8 @@ def rank_modes(samples: Sequence[GroupSample]) -> list[Mode]:
     return sorted(counts, key=lambda m: (-counts[m], m[0], m[1]))
 
 
-def random_half_a(samples: Sequence[GroupSample], rng: np.random.Generator) -> set[tuple[int, int]]:
+def random_half_a(samples: Sequence[GroupSample],
+                  rng: np.random.Generator) -> set[tuple[int, int]]:
     """(group, repetition) of the samples a random halving puts in half A: a random half of each
     group's repetitions, rounded up (as the even indices are)."""
     out: set[tuple[int, int]] = set()
@@ -84,7 +85,8 @@ def object_mode_ssr(samples: Sequence[GroupSample], modes: int, tie_key: str,
                     half_a: set[tuple[int, int]] | None = None) -> list[ModeResult]:
     """Mode SSR of modes 1..``modes`` on one object; ``tie_key`` (e.g. method/object) seeds the tie
     breaks; ``half_a``: the (group, repetition) in half A (None: the even repetitions)."""
-    in_a = [(s.group, s.repetition) in half_a if half_a is not None else s.repetition % 2 == 0 for s in samples]
+    in_a = [(s.group, s.repetition) in half_a if half_a is not None else s.repetition % 2 == 0
+            for s in samples]
     groups = sorted({s.group for s in samples})
     half_b = {g: [s for s, a in zip(samples, in_a) if s.group == g and not a] for g in groups}
     half_a_samples = {g: [s for s, a in zip(samples, in_a) if s.group == g and a] for g in groups}
@@ -127,13 +129,15 @@ class HalvingComparison:
 
     @property
     def holds(self) -> bool:
-        """The rule: lower bounds above 0 and positive in at least ``POSITIVE_SHARE`` of the halvings."""
-        return self.pooled.lower > 0 and self.macro.lower > 0 and self.positive_share >= POSITIVE_SHARE
+        """The rule: lower bounds above 0 and positive in at least ``POSITIVE_SHARE`` of the
+        halvings."""
+        above = self.pooled.lower > 0 and self.macro.lower > 0
+        return above and self.positive_share >= POSITIVE_SHARE
 
 
 def halving_rule(a: Mapping[str, Sequence[GroupSample]], b: Mapping[str, Sequence[GroupSample]],
-                 categories: Mapping[str, str], rank: int = 2, halvings: int = HALVINGS, rounds: int = 2000,
-                 seed: int = 0) -> HalvingComparison:
+                 categories: Mapping[str, str], rank: int = 2, halvings: int = HALVINGS,
+                 rounds: int = 2000, seed: int = 0) -> HalvingComparison:
     """Compare method A's and method B's mode ``rank`` on the objects both ran (object -> samples;
     ``categories``: object -> category), as the module docstring says."""
     if halvings < HALVINGS:
@@ -146,13 +150,14 @@ def halving_rule(a: Mapping[str, Sequence[GroupSample]], b: Mapping[str, Sequenc
     for h in range(halvings):
         for k, obj in enumerate(objects):
             for row, (name, samples) in enumerate((("a", a[obj]), ("b", b[obj]))):
-                result = object_mode_ssr(samples, rank, f"{name}|{obj}|{h}", random_half_a(samples, rng))[rank - 1]
+                half_a = random_half_a(samples, rng)
+                result = object_mode_ssr(samples, rank, f"{name}|{obj}|{h}", half_a)[rank - 1]
                 counts[2 * row:2 * row + 2, h, k] = result.rate.successes, result.rate.trials
     cats = [categories[o] for o in objects]
-    diff_pooled, diff_macro = pooled_and_macro(np.ones((1, len(objects))), counts, cats)  # [1, halvings] each
+    # [1, halvings] each, then [rounds, halvings] each
+    diff_pooled, diff_macro = pooled_and_macro(np.ones((1, len(objects))), counts, cats)
     weights = bootstrap_weights(cats, rounds, rng)
-    boot_pooled, boot_macro = pooled_and_macro(weights, counts, cats)  # [rounds, halvings]
-    return HalvingComparison(rank, halvings,
-                             Estimate.of(float(np.mean(diff_pooled)), np.nanmean(boot_pooled, axis=1)),
-                             Estimate.of(float(np.mean(diff_macro)), np.nanmean(boot_macro, axis=1)),
-                             float(np.mean(diff_pooled[0] > 0)))
+    boot_pooled, boot_macro = pooled_and_macro(weights, counts, cats)
+    pooled = Estimate.of(float(np.mean(diff_pooled)), np.nanmean(boot_pooled, axis=1))
+    macro = Estimate.of(float(np.mean(diff_macro)), np.nanmean(boot_macro, axis=1))
+    return HalvingComparison(rank, halvings, pooled, macro, float(np.mean(diff_pooled[0] > 0)))

@@ -125,9 +125,11 @@ def paired_table(pairs: Sequence[tuple[dict, dict]], titles: Mapping[str, str] |
     return lines
 
 
-def scene_pairs(runs: Sequence[Sequence[dict]], method_a: str, method_b: str) -> list[PairedCounts]:
-    """Per object, the scenes (same object and reset seed, within one seed's run) that both methods
-    ran, pooled over ``runs`` (one record list per seed), by object key; objects with none left out."""
+def scene_pairs(runs: Sequence[Sequence[dict]], method_a: str,
+                method_b: str) -> list[PairedCounts]:
+    """Per object, the scenes (same object and reset seed, within one seed's run) that both
+    methods ran, pooled over ``runs`` (one record list per seed), by object key; objects with
+    none left out."""
     totals: dict[str, list] = {}
     for records in runs:
         by_scene: dict[str, dict[tuple[str, int], dict]] = {method_a: {}, method_b: {}}
@@ -137,5 +139,8 @@ def scene_pairs(runs: Sequence[Sequence[dict]], method_a: str, method_b: str) ->
         for scene in sorted(set(by_scene[method_a]) & set(by_scene[method_b])):
             ra, rb = by_scene[method_a][scene], by_scene[method_b][scene]
             entry = totals.setdefault(scene[0], [ra["category"], 0, 0, 0])
-            entry[1:] = entry[1] + 1, entry[2] + int(bool(ra["success"])), entry[3] + int(bool(rb["success"]))
-    return [PairedCounts(category, scenes, sa, sb) for _, (category, scenes, sa, sb) in sorted(totals.items())]
+            entry[1] += 1
+            entry[2] += int(bool(ra["success"]))
+            entry[3] += int(bool(rb["success"]))
+    return [PairedCounts(category, scenes, sa, sb)
+            for _, (category, scenes, sa, sb) in sorted(totals.items())]

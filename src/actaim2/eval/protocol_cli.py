@@ -1,12 +1,15 @@
 """`actaim2 protocol`: write the protocol lock before any test figure; count the ledger's runs.
 
 Examples:
-    actaim2 protocol lock --recipe recipes/real.yaml --checkpoint runs/s0/policy --checkpoint runs/s1/policy \\
-        --checkpoint runs/s2/policy --partnet-root ~/partnet-mobility      # -> results/protocol.lock
-    actaim2 protocol ledger                                                # the --final runs so far
+    actaim2 protocol lock --catalogue partnet --partnet-root ~/partnet-mobility \\
+        --recipe recipes/real.yaml --checkpoint runs/s0/policy --checkpoint runs/s1/policy \\
+        --checkpoint runs/s2/policy                      # -> results/protocol.lock
+    actaim2 protocol ledger                              # the --final runs so far
 
-The lock's format and the rules it enforces: actaim2.eval.protocol and docs/evaluation.md ("Protocol").
+The lock's format and the rules it enforces: actaim2.eval.protocol and docs/evaluation.md
+("Protocol").
 """
+
 from __future__ import annotations
 
 import argparse
@@ -20,30 +23,67 @@ from actaim2.eval.protocol import LEDGER_FILE, LOCK_FILE
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="action", required=True)
-    lock = sub.add_parser("lock", help="freeze the recipe, seeds' checkpoints, evaluation set and test objects")
-    lock.add_argument("--recipe", type=Path, required=True, help="the file that makes the checkpoints (its sha256 is locked)")
-    lock.add_argument("--checkpoint", type=Path, action="append", required=True, metavar="STEM",
-                      help="a seed's policy checkpoint (repeatable, seed 0 first: the committed one)")
-    lock.add_argument("--samples-per-group", type=int, default=8, help="samples per cluster and pseudo-cluster (default 8)")
-    lock.add_argument("--splits", default="test_unseen_instance,test_unseen_category", help="the test splits to lock")
-    lock.add_argument("--lock", type=Path, default=LOCK_FILE, help=f"where to write it (default {LOCK_FILE})")
+    lock = sub.add_parser(
+        "lock", help="freeze the recipe, seeds' checkpoints, evaluation set and test objects"
+    )
+    lock.add_argument(
+        "--recipe",
+        type=Path,
+        required=True,
+        help="the file that makes the checkpoints (its sha256 is locked)",
+    )
+    lock.add_argument(
+        "--checkpoint",
+        type=Path,
+        action="append",
+        required=True,
+        metavar="STEM",
+        help="a seed's policy checkpoint (repeatable, seed 0 first: the committed one)",
+    )
+    lock.add_argument(
+        "--samples-per-group",
+        type=int,
+        default=8,
+        help="samples per cluster and pseudo-cluster (default 8)",
+    )
+    lock.add_argument(
+        "--splits",
+        default="test_unseen_instance,test_unseen_category",
+        help="the test splits to lock",
+    )
+    lock.add_argument(
+        "--lock", type=Path, default=LOCK_FILE, help=f"where to write it (default {LOCK_FILE})"
+    )
     add_catalogue_arguments(lock)
     ledger = sub.add_parser("ledger", help="count the --final runs")
-    ledger.add_argument("--ledger", type=Path, default=LEDGER_FILE, help=f"the ledger (default {LEDGER_FILE})")
+    ledger.add_argument(
+        "--ledger", type=Path, default=LEDGER_FILE, help=f"the ledger (default {LEDGER_FILE})"
+    )
 
 
 def add_protocol_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--final``, ``--lock``, ``--ledger``: shared by evaluate and validate (actaim2.eval.protocol)."""
-    parser.add_argument("--final", action="store_true",
-                        help="run test-split objects, once, under the protocol lock (docs/evaluation.md, Protocol); "
-                             "the run is appended to the ledger")
-    parser.add_argument("--lock", type=Path, default=LOCK_FILE, help=f"the protocol lock (default {LOCK_FILE})")
-    parser.add_argument("--ledger", type=Path, default=LEDGER_FILE, help=f"the --final runs' ledger (default {LEDGER_FILE})")
+    """``--final``, ``--lock``, ``--ledger``: shared by evaluate and validate
+    (actaim2.eval.protocol)."""
+    parser.add_argument(
+        "--final",
+        action="store_true",
+        help="run test-split objects, once, under the protocol lock (docs/evaluation.md, "
+        "Protocol); the run is appended to the ledger",
+    )
+    parser.add_argument(
+        "--lock", type=Path, default=LOCK_FILE, help=f"the protocol lock (default {LOCK_FILE})"
+    )
+    parser.add_argument(
+        "--ledger",
+        type=Path,
+        default=LEDGER_FILE,
+        help=f"the --final runs' ledger (default {LEDGER_FILE})",
+    )
 
 
 def splits_files(args: argparse.Namespace, objects_dir: Path | None = None) -> list[Path]:
-    """The splits files that say which real folders are test objects: the partnet catalogue's (where
-    it is known) and the one beside ``objects_dir`` or its objects."""
+    """The splits files that say which real folders are test objects: the partnet catalogue's
+    (where it is known) and the one beside ``objects_dir`` or its objects."""
     import os
 
     from actaim2.data.real_objects import PARTNET_ROOT_ENV, SPLITS_FILE
@@ -68,22 +108,37 @@ def _lock(args: argparse.Namespace) -> int:
 
     try:
         if args.catalogue != PARTNET.name:
-            raise ValueError("the protocol locks the partnet catalogue's test splits: pass --catalogue partnet")
+            raise ValueError(
+                "the protocol locks the partnet catalogue's test splits: pass --catalogue partnet"
+            )
         splits = tuple(s for s in args.splits.split(",") if s)
         if not set(splits) <= set(PARTNET.test):
-            raise ValueError(f"--splits {args.splits}: a lock holds test splits only ({', '.join(PARTNET.test)})")
+            raise ValueError(
+                f"--splits {args.splits}: a lock holds test splits only "
+                f"({', '.join(PARTNET.test)})"
+            )
         folders = catalogue_folders(partnet_root(args.partnet_root), splits)
         objects = {s: tuple(f.object_id for f in folders if f.split == s) for s in splits}
         digests = tuple(str(describe(stem)["weights_sha256"]) for stem in args.checkpoint)
-        lock = ProtocolLock(str(args.recipe), file_sha256(args.recipe), digests, EVAL_SET_VERSION, args.samples_per_group,
-                            objects, success_rule())
+        lock = ProtocolLock(
+            str(args.recipe),
+            file_sha256(args.recipe),
+            digests,
+            EVAL_SET_VERSION,
+            args.samples_per_group,
+            objects,
+            success_rule(),
+        )
         lock.write(args.lock)
     except (ValueError, FileNotFoundError) as exc:
         print(f"actaim2 protocol lock: {exc}", file=sys.stderr)
         return 2
     counts = ", ".join(f"{s} {len(v)}" for s, v in objects.items())
-    print(f"wrote {args.lock}: {len(digests)} seed(s), evaluation set {EVAL_SET_VERSION}, "
-          f"{args.samples_per_group} per group, objects {counts}, sha256 {lock.sha256[:12]}; commit it before any test run")
+    print(
+        f"wrote {args.lock}: {len(digests)} seed(s), evaluation set {EVAL_SET_VERSION}, "
+        f"{args.samples_per_group} per group, objects {counts}, sha256 {lock.sha256[:12]}; commit "
+        "it before any test run"
+    )
     return 0
 
 

@@ -91,7 +91,8 @@ class Estimate:
         return f"{100 * self.value:+.1f} [{100 * self.lower:+.1f}, {100 * self.upper:+.1f}]"
 
 
-def bootstrap_weights(categories: Sequence[str], rounds: int, rng: np.random.Generator) -> np.ndarray:
+def bootstrap_weights(categories: Sequence[str], rounds: int,
+                      rng: np.random.Generator) -> np.ndarray:
     """[rounds, objects]: how often each object is drawn when every category's objects are
     resampled with replacement, within the category (module docstring)."""
     if rounds < 1:
@@ -105,7 +106,8 @@ def bootstrap_weights(categories: Sequence[str], rounds: int, rng: np.random.Gen
     return weights
 
 
-def pooled_and_macro(weights: np.ndarray, counts: np.ndarray, categories: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+def pooled_and_macro(weights: np.ndarray, counts: np.ndarray,
+                     categories: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
     """Rate of method A minus rate of method B, pooled over objects and as the mean over categories
     of each category's pooled difference; [rounds, tables] each.
 
@@ -136,7 +138,8 @@ class PairedCounts:
 
     def __post_init__(self) -> None:
         if not (0 <= self.successes_a <= self.scenes and 0 <= self.successes_b <= self.scenes):
-            raise ValueError(f"successes must be within 0..{self.scenes} scenes, got {self.successes_a}, {self.successes_b}")
+            raise ValueError(f"successes must be within 0..{self.scenes} scenes, got "
+                             f"{self.successes_a}, {self.successes_b}")
 
 
 @dataclass(frozen=True)
@@ -152,7 +155,8 @@ class PairedDifference:
         return self.pooled.lower > 0 and self.macro.lower > 0
 
 
-def paired_bootstrap(objects: Sequence[PairedCounts], rounds: int = 2000, seed: int = 0) -> PairedDifference:
+def paired_bootstrap(objects: Sequence[PairedCounts], rounds: int = 2000,
+                     seed: int = 0) -> PairedDifference:
     """The paired SSR difference and its intervals by bootstrap over objects within category."""
     if not objects or not any(o.scenes for o in objects):
         raise ValueError("no paired scene to compare")
@@ -160,6 +164,7 @@ def paired_bootstrap(objects: Sequence[PairedCounts], rounds: int = 2000, seed: 
                        [[o.successes_b for o in objects]], [[o.scenes for o in objects]]], float)
     cats = [o.category for o in objects]
     point_pooled, point_macro = pooled_and_macro(np.ones((1, len(objects))), counts, cats)
-    draws_pooled, draws_macro = pooled_and_macro(bootstrap_weights(cats, rounds, np.random.default_rng(seed)), counts, cats)
+    weights = bootstrap_weights(cats, rounds, np.random.default_rng(seed))
+    draws_pooled, draws_macro = pooled_and_macro(weights, counts, cats)
     return PairedDifference(Estimate.of(point_pooled[0, 0], draws_pooled[:, 0]),
                             Estimate.of(point_macro[0, 0], draws_macro[:, 0]))

@@ -53,14 +53,15 @@ def catalogue_paths(catalogue_name: str, root: str, splits: Sequence[str]) -> li
     chosen = tuple(s for s in splits if s)
     if catalogue(catalogue_name) is not PARTNET:
         if chosen:
-            raise ValueError(f"splits {list(chosen)} are for the partnet catalogue; the generated one's objects are "
-                             f"categories x instances")
+            raise ValueError(f"splits {list(chosen)} are for the partnet catalogue; the generated "
+                             f"one's objects are categories x instances")
         return []
     tests = [s for s in chosen if s in PARTNET.test]
     if tests:
-        raise ValueError(f"splits {tests} are test splits: they run only under the evaluation protocol "
-                         f"(actaim2 evaluate --final, docs/evaluation.md)")
-    folders = catalogue_folders(partnet_root(Path(root) if root else None), chosen or PARTNET.default_evaluate)
+        raise ValueError(f"splits {tests} are test splits: they run only under the evaluation "
+                         f"protocol (actaim2 evaluate --final, docs/evaluation.md)")
+    where = partnet_root(Path(root) if root else None)
+    folders = catalogue_folders(where, chosen or PARTNET.default_evaluate)
     return [f.folder for f in folders]
 
 

@@ -3,7 +3,7 @@
 Examples:
     actaim2 train --data data/ds --out runs/cpu                       # CGMVAE + predictor, CPU default config
     actaim2 train --data data/ds --out runs/cpu --resume              # continue an interrupted run
-    actaim2 train --data data/pm --out runs/pm --catalogue partnet    # checks no val/test object trains
+    actaim2 train --data data/pm --out runs/pm --catalogue partnet    # no val/test object in it
     actaim2 train --data data/ds --out runs/cvae --selector cvae --phases selector joint \\
         --init-from runs/cpu/goal_rvt                                 # a baseline on the Goal-RVT predictor
     torchrun --nproc-per-node 2 --master-addr 127.0.0.1 -m actaim2.cli train --data data/ds --out runs/ddp  # DDP
@@ -68,7 +68,8 @@ def main(args: argparse.Namespace) -> int:
         from actaim2.data.storage import DatasetReader
 
         try:  # no trajectory of a val or test object may reach the models
-            check_training_objects(DatasetReader(args.data).entries, partnet_splits(partnet_root(args.partnet_root)))
+            splits = partnet_splits(partnet_root(args.partnet_root))
+            check_training_objects(DatasetReader(args.data).entries, splits)
         except (ValueError, FileNotFoundError) as exc:
             print(f"actaim2 train: {exc}")
             return 2

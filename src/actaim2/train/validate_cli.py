@@ -33,8 +33,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--data", type=Path, required=True, help="the dataset folder the run was trained on")
     parser.add_argument("--checkpoint", type=Path, help="policy checkpoint stem (default <run>/policy)")
     add_catalogue_arguments(parser)
-    parser.add_argument("--split", help="split whose successes are measured (default: generated train_unseen_instance, "
-                                        "partnet val; a test split only with --final under the protocol lock)")
+    parser.add_argument("--split", help="split whose successes are measured (default: generated "
+                                        "train_unseen_instance, partnet val; a test split only "
+                                        "with --final under the protocol lock)")
     add_protocol_arguments(parser)
     parser.add_argument("--perception", default="ring5", help="perception configuration the checkpoint was trained with")
     parser.add_argument("--noise-scale", type=float, default=None, metavar="S",
@@ -47,7 +48,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     from actaim2.data.splits import catalogue
     from actaim2.data.storage import DatasetReader, object_of
-    from actaim2.eval.protocol import append_ledger, check_run as check_protocol, guarded_ids, protected
+    from actaim2.eval.protocol import append_ledger, guarded_ids, protected
+    from actaim2.eval.protocol import check_run as check_protocol
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.perception.config import load_perception_config
     from actaim2.policy.inference import NOISE_SCALE, check_noise_scale
@@ -124,7 +126,8 @@ def main(args: argparse.Namespace) -> int:
         written.append(plot_curves(read_history(args.run), args.run / "curves.png",
                                    title=f"{args.run} (weights {str(digest)[:12]}), validation: 10% of train_seen"))
     if lock is not None:
-        append_ledger(args.ledger, lock, "validate", str(args.run), guarded, [str(digest)], len(data.ids))
+        append_ledger(args.ledger, lock, "validate", str(args.run), guarded, [str(digest)],
+                      len(data.ids))
         written.append(args.ledger)
     print("wrote " + ", ".join(map(str, written)))
     return 0
