@@ -29,14 +29,14 @@ from partnet_shared import shared_partnet  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 COMMITTED = REPO / "actaim2_policy" / "checkpoints" / "actaim2_ring5"
-SEED0, SEED1 = "a" * 64, "b" * 64
+SEED0, SEED1, SEED2 = "a" * 64, "b" * 64, "f" * 64
 
 
 def lock(**changes) -> ProtocolLock:
     fields = dict(
         recipe="recipe.yaml",
         recipe_sha256="c" * 64,
-        checkpoints=(SEED0, SEED1),
+        checkpoints=(SEED0, SEED1, SEED2),
         eval_set_version=EVAL_SET_VERSION,
         samples_per_group=8,
         objects={"test_unseen_category": ("100154", "9968"), "test_unseen_instance": ("156",)},
@@ -53,8 +53,9 @@ def test_a_lock_checks_itself_and_round_trips(tmp_path) -> None:
     with pytest.raises(ValueError, match="written once"):
         lock().write(path)
     for bad, words in (
-        ({"checkpoints": ("d2ca9126",)}, "64 hex"),
-        ({"checkpoints": (SEED0, SEED0)}, "same checkpoint"),
+        ({"checkpoints": ("d2ca9126", SEED0, SEED1)}, "64 hex"),
+        ({"checkpoints": (SEED0, SEED0, SEED1)}, "same checkpoint"),
+        ({"checkpoints": (SEED0, SEED1)}, "at least 3 seeds"),
         ({"samples_per_group": 1}, "both halves"),
         ({"objects": {"val": ("149",)}}, "test splits"),
         ({"objects": {"test_unseen_instance": ()}}, "non-empty"),
@@ -147,36 +148,31 @@ def test_protocol_lock_command_writes_the_catalogues_test_objects(tmp_path, caps
     root = shared_partnet()
     recipe = tmp_path / "recipe.yaml"
     recipe.write_text("config: cpu_default\n")
+    meta = json.loads(COMMITTED.with_suffix(".json").read_text())
+    seeds = [COMMITTED]
+    for k in (1, 2):  # two more seeds' checkpoints: the lock reads their JSON only
+        seeds.append(tmp_path / f"seed{k}")
+        other = {**meta, "weights_sha256": str(k) * 64}
+        seeds[-1].with_suffix(".json").write_text(json.dumps(other))
     path = tmp_path / "protocol.lock"
-    base = [
-        "protocol",
-        "lock",
-        "--recipe",
-        str(recipe),
-        "--checkpoint",
-        str(COMMITTED),
-        "--lock",
-        str(path),
-        "--partnet-root",
-        str(root),
-    ]
+    base = ["protocol", "lock", "--recipe", str(recipe), "--lock", str(path),
+            "--partnet-root", str(root), "--checkpoint", str(COMMITTED)]
     assert cli(base) == 2 and "--catalogue partnet" in capsys.readouterr().err
-    assert (
-        cli(base + ["--catalogue", "partnet", "--splits", "val"]) == 2
-        and "test splits only" in capsys.readouterr().err
-    )
-    assert cli(base + ["--catalogue", "partnet"]) == 0
+    assert cli(base + ["--catalogue", "partnet"]) == 2
+    assert "at least 3 seeds" in capsys.readouterr().err
+    base += ["--catalogue", "partnet"]
+    base += ["--checkpoint", str(seeds[1]), "--checkpoint", str(seeds[2])]
+    assert cli(base + ["--splits", "val"]) == 2 and "test splits only" in capsys.readouterr().err
+    assert cli(base) == 0 and not capsys.readouterr().err
     written = ProtocolLock.read(path)
     listed = yaml.safe_load((root / "splits.yaml").read_text())
     for split in ("test_unseen_instance", "test_unseen_category"):
         assert sorted(written.objects[split]) == sorted(k for k, v in listed.items() if v == split)
-    digest = json.loads(COMMITTED.with_suffix(".json").read_text())["weights_sha256"]
-    assert written.checkpoints == (digest,) and written.recipe_sha256 == file_sha256(recipe)
-    assert (written.eval_set_version, written.samples_per_group, written.success_rule) == (
-        EVAL_SET_VERSION,
-        8,
-        success_rule(),
-    )
+    assert written.checkpoints == (meta["weights_sha256"], "1" * 64, "2" * 64)
+    assert written.recipe_sha256 == file_sha256(recipe)
+    assert (written.eval_set_version, written.samples_per_group) == (EVAL_SET_VERSION, 8)
+    assert written.success_rule == success_rule()
+    assert cli(base) == 2 and "written once" in capsys.readouterr().err
 
 
 def test_evaluate_refuses_a_test_split_without_final_and_lock(tmp_path, capsys) -> None:

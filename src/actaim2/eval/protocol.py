@@ -36,6 +36,7 @@ from actaim2.data.splits import TEST_SPLITS
 LOCK_FILE = Path("results/protocol.lock")
 LEDGER_FILE = Path("results/ledger.jsonl")
 _SHA256 = re.compile(r"[0-9a-f]{64}")
+MIN_SEEDS = 3  # checkpoints of a lock: collection seed and training seed both varied
 
 
 def success_rule() -> dict:
@@ -82,6 +83,9 @@ class ProtocolLock:
             )
         if len(set(self.checkpoints)) != len(self.checkpoints):
             raise ValueError("two seeds of the lock have the same checkpoint")
+        if len(self.checkpoints) < MIN_SEEDS:
+            raise ValueError(f"a lock needs at least {MIN_SEEDS} seeds' checkpoints, got "
+                             f"{len(self.checkpoints)}")
         if self.samples_per_group < 2:
             raise ValueError(
                 f"samples_per_group {self.samples_per_group}: the 2nd-mode rule needs >= 2 (both "
