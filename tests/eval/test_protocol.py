@@ -177,66 +177,21 @@ def test_protocol_lock_command_writes_the_catalogues_test_objects(tmp_path, caps
 
 def test_evaluate_refuses_a_test_split_without_final_and_lock(tmp_path, capsys) -> None:
     root = shared_partnet()
-    base = [
-        "evaluate",
-        "--out",
-        str(tmp_path / "eval"),
-        "--methods",
-        "random",
-        "--render-path",
-        "raycast",
-        "--lock",
-        str(tmp_path / "protocol.lock"),
-        "--ledger",
-        str(tmp_path / "ledger.jsonl"),
-        "--no-progress",
-    ]
-    assert (
-        cli(
-            base
-            + [
-                "--catalogue",
-                "partnet",
-                "--partnet-root",
-                str(root),
-                "--splits",
-                "test_unseen_category",
-            ]
-        )
-        == 2
-    )
+    base = ["evaluate", "--out", str(tmp_path / "eval"), "--methods", "random",
+            "--render-path", "raycast", "--lock", str(tmp_path / "protocol.lock"),
+            "--ledger", str(tmp_path / "ledger.jsonl"), "--no-progress"]
+    partnet = base + ["--catalogue", "partnet", "--partnet-root", str(root)]
+    assert cli(partnet + ["--splits", "test_unseen_category"]) == 2
     err = capsys.readouterr().err
-    assert (
-        "refuses test-split objects" in err and "test_unseen_category" in err and "--final" in err
-    )
+    assert "refuses test-split objects" in err and "test_unseen_category" in err
+    assert "--final" in err
     # a test object given as a folder is known by the splits file beside it
     assert cli(base + ["--splits", "", "--objects", str(root / "156")]) == 2
     assert "test_unseen_instance: 156" in capsys.readouterr().err
-    assert (
-        cli(
-            base
-            + [
-                "--catalogue",
-                "partnet",
-                "--partnet-root",
-                str(root),
-                "--splits",
-                "test_unseen_instance",
-                "--final",
-                "--per-group",
-                "8",
-            ]
-        )
-        == 2
-    )
+    final = ["--splits", "test_unseen_instance", "--final", "--per-group", "8"]
+    assert cli(partnet + final) == 2
     assert "no protocol lock" in capsys.readouterr().err
-    assert (
-        cli(
-            base
-            + ["--catalogue", "partnet", "--partnet-root", str(root), "--splits", "val", "--final"]
-        )
-        == 2
-    )
+    assert cli(partnet + ["--splits", "val", "--final"]) == 2
     assert "for test splits" in capsys.readouterr().err
     assert not (tmp_path / "eval").exists() and not (tmp_path / "ledger.jsonl").exists()
 

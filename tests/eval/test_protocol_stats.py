@@ -29,7 +29,7 @@ def test_paired_difference_exact_answers() -> None:
     assert diff.pooled.value == pytest.approx(40 / 120) and diff.macro.value == pytest.approx(0.2)
     # every object alike inside its category: every resample gives the same answer
     assert diff.pooled.lower == pytest.approx(40 / 120) and diff.macro.upper == pytest.approx(0.2)
-    assert diff.beats
+    assert diff.above_zero
     always = paired_bootstrap([PairedCounts("box", 4, 4, 0)] * 3)
     assert (always.pooled.value, always.pooled.lower, always.pooled.upper) == (1.0, 1.0, 1.0)
     with pytest.raises(ValueError, match="within 0..4"):
@@ -55,14 +55,14 @@ def _paired_objects(
 def test_paired_bootstrap_finds_a_known_gain_and_covers_no_gain() -> None:
     rng = np.random.default_rng(1)
     gain = paired_bootstrap(_paired_objects(rng, 0.2), rounds=1000)
-    assert abs(gain.pooled.value - 0.2) < 0.06 and gain.pooled.lower > 0.05 and gain.beats
+    assert abs(gain.pooled.value - 0.2) < 0.06 and gain.pooled.lower > 0.05 and gain.above_zero
     covered, beaten = 0, 0
     for k in range(
         40
     ):  # no gain: the interval holds 0 about 95 % of the time, "beats" about 2.5 %
         diff = paired_bootstrap(_paired_objects(rng, 0.0), rounds=400, seed=k)
         covered += diff.pooled.lower <= 0 <= diff.pooled.upper
-        beaten += diff.beats
+        beaten += diff.above_zero
     assert covered >= 34 and beaten <= 4
 
 
@@ -129,9 +129,9 @@ def test_halving_rule_exact_answer() -> None:
     b = {f"o{k}": [GroupSample(g, r, None) for g in range(2) for r in range(4)] for k in range(6)}
     result = halving_rule(a, b, {f"o{k}": "ab"[k % 2] for k in range(6)}, rounds=200)
     assert (
-        result.pooled.value,
-        result.pooled.lower,
-        result.macro.value,
+        result.difference.pooled.value,
+        result.difference.pooled.lower,
+        result.difference.macro.value,
         result.positive_share,
     ) == (1.0, 1.0, 1.0, 1.0)
     assert result.holds and result.halvings == 100
@@ -147,7 +147,8 @@ def test_halving_rule_finds_a_second_mode_and_rejects_none() -> None:
     found = halving_rule({o: _clustered(rng, 4) for o in objects}, dc, categories, rounds=400)
     # ActAIM2's 2nd mode (OPEN) is 0.6 in its cluster; Data Collection's, measured on half B,
     # stays near its 0.1
-    assert abs(found.pooled.value - 0.5) < 0.1 and found.pooled.lower > 0.3 and found.holds
+    gain = found.difference.pooled
+    assert abs(gain.value - 0.5) < 0.1 and gain.lower > 0.3 and found.holds
     same = halving_rule({o: _structureless(rng, 4) for o in objects}, dc, categories, rounds=400)
-    assert abs(same.pooled.value) < 0.08 and not same.holds
-    assert same.pooled.lower < 0 < same.pooled.upper
+    assert abs(same.difference.pooled.value) < 0.08 and not same.holds
+    assert same.difference.pooled.lower < 0 < same.difference.pooled.upper

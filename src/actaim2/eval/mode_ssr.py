@@ -41,7 +41,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from actaim2.eval.stats import Estimate, Rate, bootstrap_weights, pooled_and_macro
+from actaim2.eval.stats import (Estimate, Rate, RateDifference, bootstrap_weights,
+                                pooled_and_macro)
 
 Mode = tuple[str, int]  # (DoF, direction)
 HALVINGS = 100  # random halvings the comparison is averaged over, at least
@@ -123,16 +124,14 @@ class HalvingComparison:
 
     rank: int
     halvings: int
-    pooled: Estimate  # over all half-B samples; interval from resampling objects within category
-    macro: Estimate  # the mean over categories of each category's pooled difference
+    difference: RateDifference  # averaged over the halvings; intervals over objects in category
     positive_share: float  # halvings whose pooled difference is above 0
 
     @property
     def holds(self) -> bool:
         """The rule: lower bounds above 0 and positive in at least ``POSITIVE_SHARE`` of the
         halvings."""
-        above = self.pooled.lower > 0 and self.macro.lower > 0
-        return above and self.positive_share >= POSITIVE_SHARE
+        return self.difference.above_zero and self.positive_share >= POSITIVE_SHARE
 
 
 def halving_rule(a: Mapping[str, Sequence[GroupSample]], b: Mapping[str, Sequence[GroupSample]],
@@ -160,4 +159,5 @@ def halving_rule(a: Mapping[str, Sequence[GroupSample]], b: Mapping[str, Sequenc
     boot_pooled, boot_macro = pooled_and_macro(weights, counts, cats)
     pooled = Estimate.of(float(np.mean(diff_pooled)), np.nanmean(boot_pooled, axis=1))
     macro = Estimate.of(float(np.mean(diff_macro)), np.nanmean(boot_macro, axis=1))
-    return HalvingComparison(rank, halvings, pooled, macro, float(np.mean(diff_pooled[0] > 0)))
+    return HalvingComparison(rank, halvings, RateDifference(pooled, macro),
+                             float(np.mean(diff_pooled[0] > 0)))

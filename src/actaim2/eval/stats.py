@@ -143,20 +143,20 @@ class PairedCounts:
 
 
 @dataclass(frozen=True)
-class PairedDifference:
-    """SSR of method A minus method B on the same scenes, pooled and category macro-average."""
+class RateDifference:
+    """A rate of method A minus method B, pooled over samples and as the category macro-average."""
 
     pooled: Estimate
     macro: Estimate
 
     @property
-    def beats(self) -> bool:
-        """A beats B: both lower bounds above 0."""
+    def above_zero(self) -> bool:
+        """Both lower bounds above 0: A beats B."""
         return self.pooled.lower > 0 and self.macro.lower > 0
 
 
 def paired_bootstrap(objects: Sequence[PairedCounts], rounds: int = 2000,
-                     seed: int = 0) -> PairedDifference:
+                     seed: int = 0) -> RateDifference:
     """The paired SSR difference and its intervals by bootstrap over objects within category."""
     if not objects or not any(o.scenes for o in objects):
         raise ValueError("no paired scene to compare")
@@ -166,5 +166,5 @@ def paired_bootstrap(objects: Sequence[PairedCounts], rounds: int = 2000,
     point_pooled, point_macro = pooled_and_macro(np.ones((1, len(objects))), counts, cats)
     weights = bootstrap_weights(cats, rounds, np.random.default_rng(seed))
     draws_pooled, draws_macro = pooled_and_macro(weights, counts, cats)
-    return PairedDifference(Estimate.of(point_pooled[0, 0], draws_pooled[:, 0]),
+    return RateDifference(Estimate.of(point_pooled[0, 0], draws_pooled[:, 0]),
                             Estimate.of(point_macro[0, 0], draws_macro[:, 0]))
