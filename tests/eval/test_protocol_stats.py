@@ -57,9 +57,8 @@ def test_paired_bootstrap_finds_a_known_gain_and_covers_no_gain() -> None:
     gain = paired_bootstrap(_paired_objects(rng, 0.2), rounds=1000)
     assert abs(gain.pooled.value - 0.2) < 0.06 and gain.pooled.lower > 0.05 and gain.above_zero
     covered, beaten = 0, 0
-    for k in range(
-        40
-    ):  # no gain: the interval holds 0 about 95 % of the time, "beats" about 2.5 %
+    # no gain: the interval holds 0 about 95 % of the time, "beats" about 2.5 %
+    for k in range(40):
         diff = paired_bootstrap(_paired_objects(rng, 0.0), rounds=400, seed=k)
         covered += diff.pooled.lower <= 0 <= diff.pooled.upper
         beaten += diff.above_zero
@@ -128,12 +127,8 @@ def test_halving_rule_exact_answer() -> None:
     }
     b = {f"o{k}": [GroupSample(g, r, None) for g in range(2) for r in range(4)] for k in range(6)}
     result = halving_rule(a, b, {f"o{k}": "ab"[k % 2] for k in range(6)}, rounds=200)
-    assert (
-        result.difference.pooled.value,
-        result.difference.pooled.lower,
-        result.difference.macro.value,
-        result.positive_share,
-    ) == (1.0, 1.0, 1.0, 1.0)
+    pooled, macro = result.difference.pooled, result.difference.macro
+    assert (pooled.value, pooled.lower, macro.value, result.positive_share) == (1.0, 1.0, 1.0, 1.0)
     assert result.holds and result.halvings == 100
     with pytest.raises(ValueError, match="at least 100"):
         halving_rule(a, b, {}, halvings=10)
