@@ -112,49 +112,20 @@ def test_an_unlisted_folder_is_refused_never_split_by_hash(tmp_path, capsys) -> 
 
 @pytest.fixture(scope="module")
 def collected(tmp_path_factory) -> Path:
-    """One random trajectory on the first faucet of train, val and test_unseen_instance each,
+    """Two random trajectories on the first faucet of train, val and test_unseen_instance each,
     collected through `actaim2 collect --catalogue partnet` (ray casting; the convex decomposition
     is left to its own tests: each object's meshes are then one hull)."""
     root = shared_partnet()
     out = tmp_path_factory.mktemp("partnet") / "ds"
     prepared: list[list[Path]] = []
+    args = ("--splits train,val,test_unseen_instance --categories faucet --instances-per-category 1 "
+            "--random 2 --grasp 0 --gmm 0 --workers 0 --render-path raycast --encoder-steps 2 "
+            "--no-progress").split()
     with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(
-            "actaim2.data.collect.prepare_objects",
-            lambda folders, cache, workers: prepared.append(folders),
-        )
-        code = cli(
-            [
-                "collect",
-                "--out",
-                str(out),
-                "--catalogue",
-                "partnet",
-                "--partnet-root",
-                str(root),
-                "--splits",
-                "train,val,test_unseen_instance",
-                "--categories",
-                "faucet",
-                "--instances-per-category",
-                "1",
-                "--random",
-                "1",
-                "--grasp",
-                "0",
-                "--gmm",
-                "0",
-                "--workers",
-                "0",
-                "--render-path",
-                "raycast",
-                "--encoder-steps",
-                "2",
-                "--no-progress",
-                "--hull-cache",
-                str(out.parent / "hulls"),
-            ]
-        )
+        patch.setattr("actaim2.data.collect.prepare_objects",
+                      lambda folders, cache, workers: prepared.append(folders))
+        code = cli(["collect", "--out", str(out), "--catalogue", "partnet", "--partnet-root", str(root),
+                    "--hull-cache", str(out.parent / "hulls"), *args])
     assert code == 0
     assert len(prepared) == 1 and len(prepared[0]) == 3
     return out
@@ -246,3 +217,13 @@ def test_the_sim_loop_runs_a_partnet_split_but_never_a_test_split(monkeypatch) -
     assert catalogue_paths("generated", "", [""]) == []
     with pytest.raises(ValueError, match="for the partnet catalogue"):
         catalogue_paths("generated", "", ["val"])
+
+
+def test_data_collection_finds_real_objects_by_folder_name(collected: Path) -> None:
+    from actaim2.eval.data_collection import data_collection_samplers
+    from actaim2.eval.evalset import partnet_objects
+
+    objects = partnet_objects(shared_partnet(), ("val", "test_unseen_instance"), 1, ("faucet",))
+    samplers = data_collection_samplers(collected, objects)
+    assert sorted(samplers) == sorted(o.key for o in objects)
+    assert all(o.key == f"folder:{o.object_id}" for o in objects)

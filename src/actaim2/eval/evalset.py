@@ -57,8 +57,13 @@ class EvalObject:
     @property
     def key(self) -> str:
         """Stable name in task keys and tables: the catalogue object id, or folder:<name>."""
+        return f"folder:{self.object_id}" if self.folder else self.object_id
+
+    @property
+    def object_id(self) -> str:
+        """The object's id in a collected dataset: the catalogue object id, or the folder name."""
         if self.folder:
-            return f"folder:{Path(self.folder).name}"
+            return Path(self.folder).name
         from actaim2.sim.objects.catalog import object_id
 
         return object_id(self.category, self.instance)

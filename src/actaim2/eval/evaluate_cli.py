@@ -226,7 +226,9 @@ def main(args: argparse.Namespace) -> int:
         lock = check_protocol("evaluate", guarded, args.final, args.lock, locked, EVAL_SET_VERSION,
                               preset.counts.per_cluster)
         render_path = _render_path(perception, args)
-        gmm = data_collection_samplers(args.data) if "data_collection" in methods else None
+        gmm = None
+        if "data_collection" in methods:
+            gmm = data_collection_samplers(args.data, objects)
         encoder = _encoder(args, stems["goal_rvt"]) if "goal_rvt" in methods else None
         run = {"eval_set_version": EVAL_SET_VERSION, "robot": args.robot, "rig": perception.rig, "hand_half_turn": half_turn,
                "pseudo_grouping": PSEUDO_GROUPING, "keypose_alternatives": alternatives, "mode_guidance": guidance,
