@@ -118,14 +118,14 @@ def collected(tmp_path_factory) -> Path:
     root = shared_partnet()
     out = tmp_path_factory.mktemp("partnet") / "ds"
     prepared: list[list[Path]] = []
-    args = ("--splits train,val,test_unseen_instance --categories faucet --instances-per-category 1 "
-            "--random 2 --grasp 0 --gmm 0 --workers 0 --render-path raycast --encoder-steps 2 "
-            "--no-progress").split()
+    args = ("--splits train,val,test_unseen_instance --categories faucet "
+            "--instances-per-category 1 --random 2 --grasp 0 --gmm 0 --workers 0 "
+            "--render-path raycast --encoder-steps 2 --no-progress").split()
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr("actaim2.data.collect.prepare_objects",
                       lambda folders, cache, workers: prepared.append(folders))
-        code = cli(["collect", "--out", str(out), "--catalogue", "partnet", "--partnet-root", str(root),
-                    "--hull-cache", str(out.parent / "hulls"), *args])
+        code = cli(["collect", "--out", str(out), "--catalogue", "partnet",
+                    "--partnet-root", str(root), "--hull-cache", str(out.parent / "hulls"), *args])
     assert code == 0
     assert len(prepared) == 1 and len(prepared[0]) == 3
     return out
@@ -180,26 +180,28 @@ def test_val_and_test_objects_never_reach_training(collected: Path, tmp_path, ca
 
 
 @pytest.mark.skipif(not COMMITTED.with_suffix(".json").is_file(), reason="no committed checkpoint")
-def test_validate_refuses_a_test_split_without_final(collected: Path, tmp_path, capsys) -> None:
-    args = [
-        "validate",
-        str(tmp_path / "v"),
-        "--data",
-        str(collected),
-        "--checkpoint",
-        str(COMMITTED),
-        "--catalogue",
-        "partnet",
-        "--partnet-root",
-        str(shared_partnet()),
-        "--lock",
-        str(tmp_path / "protocol.lock"),
-    ]
+def test_validate_refuses_a_test_split_without_final(collected: Path, tmp_path, capsys,
+                                                     monkeypatch) -> None:
+    monkeypatch.delenv(PARTNET_ROOT_ENV, raising=False)
+    base = ["validate", str(tmp_path / "v"), "--checkpoint", str(COMMITTED),
+            "--lock", str(tmp_path / "protocol.lock")]
+    args = base + ["--data", str(collected), "--catalogue", "partnet",
+                   "--partnet-root", str(shared_partnet())]
     assert cli(args + ["--split", "test_unseen_instance"]) == 2
     out = capsys.readouterr().out
     assert "refuses test-split objects" in out and "--final" in out
     assert cli(args + ["--split", "test_unseen_instance", "--final"]) == 2
     assert "no protocol lock" in capsys.readouterr().out
+    # a test object stored under a generated split name is known by the splits file beside it
+    relabelled = tmp_path / "relabelled"
+    shutil.copytree(collected, relabelled)
+    lines = [json.loads(t) for t in (relabelled / "index.jsonl").read_text().splitlines() if t]
+    test_id = next(e["object_id"] for e in lines if e["split"] == "test_unseen_instance")
+    moved = [{**e, "split": "train_unseen_instance"} if e["object_id"] == test_id else e
+             for e in lines]
+    (relabelled / "index.jsonl").write_text("".join(json.dumps(e) + "\n" for e in moved))
+    assert cli(base + ["--data", str(relabelled), "--split", "train_unseen_instance"]) == 2
+    assert f"test_unseen_instance: {test_id}" in capsys.readouterr().out
     assert not (tmp_path / "v" / "validation.json").exists()
 
 

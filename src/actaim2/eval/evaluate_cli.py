@@ -217,8 +217,9 @@ def main(args: argparse.Namespace) -> int:
             objects += folder_objects(args.objects)
         if not objects:
             raise ValueError("no object to evaluate on: give --splits or --objects")
-        guarded = protected([(o.split, Path(o.folder).name if o.folder else "") for o in objects],
-                            guarded_ids(splits_files(args, args.objects)))
+        given = [args.objects] if args.objects is not None else []
+        named = [(o.split, o.object_id if o.folder else "") for o in objects]
+        guarded = protected(named, guarded_ids(splits_files(args, given)))
         locked = [described["actaim2"]["weights_sha256"]] if "actaim2" in described else []
         if args.final and preset.counts.per_cluster != preset.counts.baseline_per_group:
             raise ValueError("--final: ActAIM2 and the grouped baselines need as many samples per "

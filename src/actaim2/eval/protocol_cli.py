@@ -16,6 +16,7 @@ import argparse
 import sys
 from collections import Counter
 from pathlib import Path
+from typing import Sequence
 
 from actaim2.data.collect_cli import add_catalogue_arguments
 from actaim2.eval.protocol import LEDGER_FILE, LOCK_FILE
@@ -81,18 +82,19 @@ def add_protocol_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def splits_files(args: argparse.Namespace, objects_dir: Path | None = None) -> list[Path]:
+def splits_files(args: argparse.Namespace, folders: Sequence[Path] = ()) -> list[Path]:
     """The splits files that say which real folders are test objects: the partnet catalogue's
-    (where it is known) and the one beside ``objects_dir`` or its objects."""
+    (where it is known) and the one in or beside each of ``folders`` (object folders, or
+    folders of them)."""
     import os
 
     from actaim2.data.real_objects import PARTNET_ROOT_ENV, SPLITS_FILE
 
     root = args.partnet_root or os.environ.get(PARTNET_ROOT_ENV)
     files = [Path(root) / SPLITS_FILE] if root else []
-    if objects_dir is not None:
-        files += [Path(objects_dir) / SPLITS_FILE, Path(objects_dir).parent / SPLITS_FILE]
-    return files
+    for folder in folders:
+        files += [Path(folder) / SPLITS_FILE, Path(folder).parent / SPLITS_FILE]
+    return list(dict.fromkeys(files))
 
 
 def main(args: argparse.Namespace) -> int:

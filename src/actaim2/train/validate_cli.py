@@ -86,9 +86,12 @@ def main(args: argparse.Namespace) -> int:
     digest = policy.meta.get("weights_sha256")
     try:
         catalogue(args.catalogue).check_splits((split,), "--split")
+        reader = DatasetReader(args.data)
         measured = {(e["split"], e["object_id"] if e.get("instance", -1) < 0 else "")
-                    for e in DatasetReader(args.data).entries if e["split"] == split}
-        guarded = protected(sorted(measured | {(split, "")}), guarded_ids(splits_files(args)))
+                    for e in reader.entries if e["split"] == split}
+        folders = [Path(folder) for folder, _ in reader.info.get("folders", [])]
+        test_ids = guarded_ids(splits_files(args, folders))
+        guarded = protected(sorted(measured | {(split, "")}), test_ids)
         lock = check_protocol("validate", guarded, args.final, args.lock, [str(digest)])
     except (ValueError, FileNotFoundError) as exc:
         print(f"actaim2 validate: {exc}")
