@@ -21,10 +21,11 @@ import json
 from pathlib import Path
 
 from actaim2.data.collect_cli import add_catalogue_arguments
+from actaim2.data.splits import GENERATED, PARTNET, PARTNET_VAL, UNSEEN_INSTANCE
 from actaim2.eval.protocol_cli import add_protocol_arguments, splits_files
 from actaim2.train.train_cli import add_threads_argument
 
-DEFAULT_SPLIT = {"generated": "train_unseen_instance", "partnet": "val"}  # per catalogue
+DEFAULT_SPLIT = {GENERATED.name: UNSEEN_INSTANCE, PARTNET.name: PARTNET_VAL}  # per catalogue
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -96,12 +97,12 @@ def main(args: argparse.Namespace) -> int:
     except (ValueError, FileNotFoundError) as exc:
         print(f"actaim2 validate: {exc}")
         return 2
-    args.split = split
-    ensure_cache(args.data, perception, [args.split], not args.no_progress, allow_held_out=True)  # measuring, not training
-    data = open_cache(args.data, perception, [args.split])
+    # measuring, not training
+    ensure_cache(args.data, perception, [split], not args.no_progress, allow_held_out=True)
+    data = open_cache(args.data, perception, [split])
     if data.outcomes is None:
-        print(f"actaim2 validate: {args.data} split {args.split} has trajectories without a DoF measurement "
-              "(dof_change), so no outcome to follow: validate a simulated collection")
+        print(f"actaim2 validate: {args.data} split {split} has trajectories without a DoF "
+              "measurement (dof_change), so no outcome to follow: validate a simulated collection")
         return 1
     placement = CubePlacement.of(perception)
     predictions = predict_keyframes(policy.selector, policy.predictor, data, placement, device)
@@ -114,14 +115,14 @@ def main(args: argparse.Namespace) -> int:
                             noise_scale=noise_scale)
     swapped = swapped_following(policy.selector, policy.predictor, data, placement, predictions, objects, outcomes, device)
     report = {"checkpoint": str(stem), "weights_sha256": digest, "dataset": str(args.data),
-              "dataset_digest": dataset_digest(args.data), "split": args.split,
+              "dataset_digest": dataset_digest(args.data), "split": split,
               "noise_scale": noise_scale,
               "actions": {k: {p: dataclasses.asdict(f) for p, f in v.items()} for k, v in actions.items()}, "selector": selector,
               "outcome_following": {p: dataclasses.asdict(f) for p, f in follow.items()},
               "drawn_following": {p: dataclasses.asdict(f) for p, f in drawn.items()},
               "swapped_following": {p: dataclasses.asdict(f) for p, f in swapped.items()}, "mode_chain": dataclasses.asdict(chain)}
     (args.run / "validation.json").write_text(json.dumps(report, indent=2) + "\n")
-    text = markdown(args.split, actions, selector, follow, chain, drawn, swapped, noise_scale)
+    text = markdown(split, actions, selector, follow, chain, drawn, swapped, noise_scale)
     (args.run / "validation.md").write_text(text)
     print(text)
     written = [args.run / "validation.json", args.run / "validation.md"]
