@@ -121,29 +121,34 @@ def _structureless(
 def test_halving_rule_exact_answer() -> None:
     # A's cluster 0 always closes and cluster 1 always opens: its 2nd mode scores 1 in every
     # halving; B never succeeds
-    a = {
-        f"o{k}": [GroupSample(g, r, (CLOSE, OPEN)[g]) for g in range(2) for r in range(4)]
-        for k in range(6)
-    }
-    b = {f"o{k}": [GroupSample(g, r, None) for g in range(2) for r in range(4)] for k in range(6)}
-    result = halving_rule(a, b, {f"o{k}": "ab"[k % 2] for k in range(6)}, rounds=200)
+    works = [GroupSample(g, r, (CLOSE, OPEN)[g]) for g in range(2) for r in range(4)]
+    fails = [GroupSample(g, r, None) for g in range(2) for r in range(4)]
+    a = {f"o{k}": [works] for k in range(6)}
+    b = {f"o{k}": [fails] for k in range(6)}
+    categories = {f"o{k}": "ab"[k % 2] for k in range(6)}
+    result = halving_rule(a, b, categories, rounds=200)
     pooled, macro = result.difference.pooled, result.difference.macro
     assert (pooled.value, pooled.lower, macro.value, result.positive_share) == (1.0, 1.0, 1.0, 1.0)
     assert result.holds and result.halvings == 100
+    # seeds pooled: a second seed's run that never succeeds halves A's 2nd-mode SSR
+    two_seeds = halving_rule({o: [works, fails] for o in a}, b, categories, rounds=200)
+    assert (two_seeds.difference.pooled.value, two_seeds.difference.pooled.upper) == (0.5, 0.5)
     with pytest.raises(ValueError, match="at least 100"):
         halving_rule(a, b, {}, halvings=10)
 
 
 def test_halving_rule_finds_a_second_mode_and_rejects_none() -> None:
     rng = np.random.default_rng(2)
-    objects = [f"o{k}" for k in range(24)]
+    objects = [f"o{k}" for k in range(16)]
     categories = {o: ("storage", "table", "faucet")[k % 3] for k, o in enumerate(objects)}
-    dc = {o: _structureless(rng, 4) for o in objects}
-    found = halving_rule({o: _clustered(rng, 4) for o in objects}, dc, categories, rounds=400)
+    dc = {o: [_structureless(rng, 4) for _ in range(2)] for o in objects}  # two seeds each
+    clustered = {o: [_clustered(rng, 4) for _ in range(2)] for o in objects}
+    found = halving_rule(clustered, dc, categories, rounds=400)
     # ActAIM2's 2nd mode (OPEN) is 0.6 in its cluster; Data Collection's, measured on half B,
     # stays near its 0.1
     gain = found.difference.pooled
     assert abs(gain.value - 0.5) < 0.1 and gain.lower > 0.3 and found.holds
-    same = halving_rule({o: _structureless(rng, 4) for o in objects}, dc, categories, rounds=400)
+    alike = {o: [_structureless(rng, 4) for _ in range(2)] for o in objects}
+    same = halving_rule(alike, dc, categories, rounds=400)
     assert abs(same.difference.pooled.value) < 0.08 and not same.holds
     assert same.difference.pooled.lower < 0 < same.difference.pooled.upper

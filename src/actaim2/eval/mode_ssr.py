@@ -134,11 +134,16 @@ class HalvingComparison:
         return self.difference.above_zero and self.positive_share >= POSITIVE_SHARE
 
 
-def halving_rule(a: Mapping[str, Sequence[GroupSample]], b: Mapping[str, Sequence[GroupSample]],
-                 categories: Mapping[str, str], rank: int = 2, halvings: int = HALVINGS,
-                 rounds: int = 2000, seed: int = 0) -> HalvingComparison:
-    """Compare method A's and method B's mode ``rank`` on the objects both ran (object -> samples;
-    ``categories``: object -> category), as the module docstring says."""
+Runs = Sequence[Sequence[GroupSample]]  # an object's samples in each seed's run
+
+
+def halving_rule(a: Mapping[str, Runs], b: Mapping[str, Runs], categories: Mapping[str, str],
+                 rank: int = 2, halvings: int = HALVINGS, rounds: int = 2000,
+                 seed: int = 0) -> HalvingComparison:
+    """Compare method A's and method B's mode ``rank`` on the objects both ran, as the module
+    docstring says. ``a``, ``b``: object -> its samples in each seed's run (each run is chosen
+    and scored on its own, its half-B counts added up: seeds pooled); ``categories``: object ->
+    category."""
     if halvings < HALVINGS:
         raise ValueError(f"{halvings} halvings: the rule averages over at least {HALVINGS}")
     objects = sorted(set(a) & set(b))
@@ -148,10 +153,12 @@ def halving_rule(a: Mapping[str, Sequence[GroupSample]], b: Mapping[str, Sequenc
     counts = np.zeros((4, halvings, len(objects)))  # successes A, trials A, successes B, trials B
     for h in range(halvings):
         for k, obj in enumerate(objects):
-            for row, (name, samples) in enumerate((("a", a[obj]), ("b", b[obj]))):
-                half_a = random_half_a(samples, rng)
-                result = object_mode_ssr(samples, rank, f"{name}|{obj}|{h}", half_a)[rank - 1]
-                counts[2 * row:2 * row + 2, h, k] = result.rate.successes, result.rate.trials
+            for row, (name, runs) in enumerate((("a", a[obj]), ("b", b[obj]))):
+                for r, samples in enumerate(runs):
+                    half_a = random_half_a(samples, rng)
+                    key = f"{name}|{obj}|{r}|{h}"
+                    rate = object_mode_ssr(samples, rank, key, half_a)[rank - 1].rate
+                    counts[2 * row:2 * row + 2, h, k] += rate.successes, rate.trials
     cats = [categories[o] for o in objects]
     # [1, halvings] each, then [rounds, halvings] each
     diff_pooled, diff_macro = pooled_and_macro(np.ones((1, len(objects))), counts, cats)
