@@ -213,3 +213,41 @@ def test_no_test_object_id_in_library_code_or_configs() -> None:
                     for m in pattern.finditer(path.read_text(errors="replace"))
                 ]
     assert not found, found
+
+
+def _write_run(folder: Path, seed: int) -> None:
+    """One seed's evaluation records on six objects of two categories: ActAIM2's clusters 0-1
+    always close and 2-3 always open; Data Collection's eight pseudo-clusters never succeed."""
+    folder.mkdir(parents=True)
+    lines = []
+    for k in range(6):
+        obj, category = f"folder:{900 + k}", ("box", "laptop")[k % 2]
+        for method, groups in (("actaim2", 4), ("data_collection", 8)):
+            for slot in range(groups * 4):
+                group, repetition = slot % groups, slot // groups
+                works = method == "actaim2"
+                mode = (["joint_0", -1] if group < 2 else ["joint_0", 1]) if works else None
+                lines.append({"key": f"{method}|{obj}|{slot}", "method": method, "object": obj,
+                              "split": "test_unseen_category", "category": category,
+                              "reset_seed": 1000 * seed + slot, "success": works, "group": group,
+                              "repetition": repetition, "mode": mode})
+    (folder / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in lines))
+
+
+def test_protocol_compare_applies_both_rules_over_seeds(tmp_path, capsys) -> None:
+    runs = [tmp_path / f"s{k}" for k in range(2)]
+    for k, run in enumerate(runs):
+        _write_run(run, k)
+    out = tmp_path / "compare.md"
+    args = ["protocol", "compare", *map(str, runs), "--rounds", "200", "--out", str(out)]
+    assert cli(args) == 0
+    text = capsys.readouterr().out
+    assert text.strip() == out.read_text().strip()
+    exact = "+100.0 [+100.0, +100.0]"
+    assert f"| SSR, paired scenes | {exact} | {exact} | yes |" in text
+    assert "2nd-mode SSR, 100 halvings (positive in 100 %) | +100.0 [+100.0, +100.0]" in text
+    assert text.count("| 100.0 [") == 2 and text.count("| 0.0 [") == 2  # each seed's SSRs
+    assert cli(args + ["--method", "data_collection", "--baseline", "actaim2"]) == 0
+    assert "| -100.0 [-100.0, -100.0] | no |" in capsys.readouterr().out
+    assert cli(["protocol", "compare", str(tmp_path / "none")]) == 2
+    assert "no results.jsonl" in capsys.readouterr().err

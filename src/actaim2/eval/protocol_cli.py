@@ -5,6 +5,7 @@ Examples:
         --recipe recipes/real.yaml --checkpoint runs/s0/policy --checkpoint runs/s1/policy \\
         --checkpoint runs/s2/policy                      # -> results/protocol.lock
     actaim2 protocol ledger                              # the --final runs so far
+    actaim2 protocol compare runs/test-s0 runs/test-s1 runs/test-s2   # both rules, seeds pooled
 
 The lock's format and the rules it enforces: actaim2.eval.protocol and docs/evaluation.md
 ("Protocol").
@@ -56,6 +57,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--lock", type=Path, default=LOCK_FILE, help=f"where to write it (default {LOCK_FILE})"
     )
     add_catalogue_arguments(lock)
+    compare = sub.add_parser("compare", help="ActAIM2 against Data Collection by the protocol's "
+                                             "rules, over each seed's evaluation run")
+    compare.add_argument("runs", type=Path, nargs="+",
+                         help="evaluation output folders, one per seed")
+    compare.add_argument("--method", default="actaim2", help="the row judged (default actaim2)")
+    compare.add_argument("--baseline", default="data_collection",
+                         help="the row it must beat (default data_collection)")
+    compare.add_argument("--halvings", type=int, default=100, help="random halvings (>= 100)")
+    compare.add_argument("--rounds", type=int, default=2000, help="bootstrap rounds")
+    compare.add_argument("--out", type=Path, help="also write the markdown there")
     ledger = sub.add_parser("ledger", help="count the --final runs")
     ledger.add_argument(
         "--ledger", type=Path, default=LEDGER_FILE, help=f"the ledger (default {LEDGER_FILE})"
@@ -98,7 +109,26 @@ def splits_files(args: argparse.Namespace, folders: Sequence[Path] = ()) -> list
 
 
 def main(args: argparse.Namespace) -> int:
-    return _lock(args) if args.action == "lock" else _ledger(args)
+    return {"lock": _lock, "compare": _compare, "ledger": _ledger}[args.action](args)
+
+
+def _compare(args: argparse.Namespace) -> int:
+    from actaim2.eval.protocol import comparison
+    from actaim2.eval.results import RESULTS_FILE, ResultLog
+
+    try:
+        missing = [str(run) for run in args.runs if not (run / RESULTS_FILE).is_file()]
+        if missing:
+            raise ValueError(f"no {RESULTS_FILE} in {', '.join(missing)}")
+        runs = [list(ResultLog(run).records.values()) for run in args.runs]
+        text = "\n".join(comparison(runs, args.method, args.baseline, args.halvings, args.rounds))
+    except ValueError as exc:
+        print(f"actaim2 protocol compare: {exc}", file=sys.stderr)
+        return 2
+    print(text)
+    if args.out is not None:
+        args.out.write_text(text + "\n")
+    return 0
 
 
 def _lock(args: argparse.Namespace) -> int:
