@@ -19,6 +19,7 @@ from actaim2.data.real_objects import (
     folder_objects,
     partnet_root,
     partnet_splits,
+    read_object_splits,
 )
 from actaim2.data.splits import CALIBRATION_SPLITS, GENERATED, PARTNET, TRAINING_SPLITS, catalogue
 from actaim2.data.storage import DatasetReader
@@ -229,3 +230,13 @@ def test_data_collection_finds_real_objects_by_folder_name(collected: Path) -> N
     samplers = data_collection_samplers(collected, objects)
     assert sorted(samplers) == sorted(o.key for o in objects)
     assert all(o.key == f"folder:{o.object_id}" for o in objects)
+
+
+def test_object_splits_take_the_partnet_split_names(tmp_path) -> None:
+    root = tmp_path / "objects"
+    make_object(root / "77777")
+    make_object(root / "88888")
+    named = tmp_path / "mine.yaml"
+    named.write_text("'77777': val\n'88888': test_unseen_category\n")
+    found = {o.object_id: o.split for o in folder_objects(root, read_object_splits(named))}
+    assert found == {"77777": "val", "88888": "test_unseen_category"}
