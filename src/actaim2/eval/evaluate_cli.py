@@ -168,7 +168,7 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.eval.evalset import (EVAL_SET_VERSION, catalogue_objects, folder_objects,
                                       partnet_objects)
     from actaim2.eval.methods import ABLATIONS, PSEUDO_GROUPING, ablation_problem
-    from actaim2.eval.protocol import append_ledger, guarded_ids, protected
+    from actaim2.eval.protocol import append_ledger, guarded_ids, protected, read_ledger
     from actaim2.eval.protocol import check_run as check_protocol
     from actaim2.eval.results import ResultLog, RunMismatchError, check_run
     from actaim2.eval.tables import report
@@ -256,6 +256,9 @@ def main(args: argparse.Namespace) -> int:
     todo = [t for t in tasks if t.key not in log.done]
     print(f"{len(tasks)} samples ({preset.name}: {len(objects)} objects, rows {', '.join(methods)}); "
           f"{len(tasks) - len(todo)} already done; render path {render_path}")
+    if lock is not None:  # before any sample: an interrupted --final run counts too
+        append_ledger(args.ledger, lock, "evaluate", str(args.out), guarded, locked, len(todo))
+        print(f"this --final run is line {len(read_ledger(args.ledger))} of {args.ledger}")
     started = time.perf_counter()
     errors = log.run(EvalWorker, setup, todo, args.workers, args.ray, not args.no_progress)
     seconds = time.perf_counter() - started
@@ -274,9 +277,6 @@ def main(args: argparse.Namespace) -> int:
         if videos > 0:
             text += video_table(write_videos(worker, tasks, log.records, args.out / "videos", videos), args.out)
     (args.out / "tables.md").write_text(text)
-    if lock is not None:
-        append_ledger(args.ledger, lock, "evaluate", str(args.out), guarded, locked, len(records))
-        print(f"appended this --final run to {args.ledger}")
     print(f"{len(todo) - errors} samples run in {seconds:.0f} s ({errors} errors, retried by a rerun); tables: {args.out / 'tables.md'}")
     return 0 if errors == 0 else 1
 

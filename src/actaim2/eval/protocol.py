@@ -248,7 +248,9 @@ def append_ledger(
     checkpoints: list[str],
     samples: int,
 ) -> dict:
-    """One line per ``--final`` run: when, what ran, against which lock; returns the line."""
+    """One line per ``--final`` run, written before it runs anything: when, what, against which
+    lock, and ``samples``: the samples (evaluate) or trajectories (validate) it is to run;
+    returns the line."""
     argv = sys.argv[1:] if sys.argv[1:2] == [tool] else [tool, "(called from Python)"]
     line = {
         "time": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),

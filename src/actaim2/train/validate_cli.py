@@ -97,6 +97,10 @@ def main(args: argparse.Namespace) -> int:
     except (ValueError, FileNotFoundError) as exc:
         print(f"actaim2 validate: {exc}")
         return 2
+    if lock is not None:  # before any measurement: an interrupted --final run counts too
+        trajectories = sum(e["split"] == split for e in reader.entries)
+        append_ledger(args.ledger, lock, "validate", str(args.run), guarded, [str(digest)],
+                      trajectories)
     # measuring, not training
     ensure_cache(args.data, perception, [split], not args.no_progress, allow_held_out=True)
     data = open_cache(args.data, perception, [split])
@@ -129,9 +133,5 @@ def main(args: argparse.Namespace) -> int:
     if (args.run / "history.jsonl").exists():  # a training run: its curves too
         written.append(plot_curves(read_history(args.run), args.run / "curves.png",
                                    title=f"{args.run} (weights {str(digest)[:12]}), validation: 10% of train_seen"))
-    if lock is not None:
-        append_ledger(args.ledger, lock, "validate", str(args.run), guarded, [str(digest)],
-                      len(data.ids))
-        written.append(args.ledger)
     print("wrote " + ", ".join(map(str, written)))
     return 0
