@@ -251,3 +251,46 @@ def test_protocol_compare_applies_both_rules_over_seeds(tmp_path, capsys) -> Non
     assert "| -100.0 [-100.0, -100.0] | no |" in capsys.readouterr().out
     assert cli(["protocol", "compare", str(tmp_path / "none")]) == 2
     assert "no results.jsonl" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(not COMMITTED.with_suffix(".json").is_file(), reason="no committed checkpoint")
+def test_a_final_run_under_a_lock_runs_once_per_ledger_line(tmp_path, capsys) -> None:
+    """The whole path on a one-object catalogue: lock, --final evaluation (ActAIM2, 2 per group,
+    ray casting), a ledger line before it runs, another for a resumed run, none for a refusal."""
+    root = tmp_path / "pm"
+    root.mkdir()
+    (root / "156").symlink_to(shared_partnet() / "156")
+    (root / "splits.yaml").write_text("'156': test_unseen_instance\n")
+    (tmp_path / "recipe.yaml").write_text("config: cpu_default\n")
+    meta = json.loads(COMMITTED.with_suffix(".json").read_text())
+    seeds = [str(COMMITTED)]
+    for k in (1, 2):
+        other = {**meta, "weights_sha256": str(k) * 64}
+        (tmp_path / f"seed{k}.json").write_text(json.dumps(other))
+        seeds.append(str(tmp_path / f"seed{k}"))
+    lock, ledger = tmp_path / "protocol.lock", tmp_path / "ledger.jsonl"
+    partnet = ["--catalogue", "partnet", "--partnet-root", str(root)]
+    assert cli(["protocol", "lock", *partnet, "--recipe", str(tmp_path / "recipe.yaml"),
+                "--lock", str(lock), "--samples-per-group", "2",
+                "--splits", "test_unseen_instance",
+                *[a for s in seeds for a in ("--checkpoint", s)]]) == 0
+    run = ["evaluate", "--out", str(tmp_path / "eval"), "--checkpoint", str(COMMITTED),
+           "--methods", "actaim2", *partnet, "--splits", "test_unseen_instance", "--final",
+           "--quick", "--render-path", "raycast", "--workers", "0", "--figures", "0",
+           "--videos", "0", "--no-progress", "--lock", str(lock), "--ledger", str(ledger)]
+    assert cli(run + ["--per-group", "4"]) == 2  # not the lock's samples per group
+    assert "4 samples per group, the lock's is 2" in capsys.readouterr().err
+    assert not ledger.exists()
+    assert cli(run + ["--per-group", "2"]) == 0
+    (line,) = read_ledger(ledger)
+    assert line["splits"] == {"test_unseen_instance": ["156"]} and line["samples"] == 16
+    assert line["checkpoints"] == [meta["weights_sha256"]] and line["tool"] == "evaluate"
+    results = (tmp_path / "eval" / "results.jsonl").read_text().splitlines()
+    records = [json.loads(t) for t in results]
+    assert len(records) == 16 and {r["split"] for r in records} == {"test_unseen_instance"}
+    assert "Real, unseen instances (test)" in (tmp_path / "eval" / "tables.md").read_text()
+    assert cli(run + ["--per-group", "2"]) == 0  # resumed: nothing left to run, still a line
+    assert [r["samples"] for r in read_ledger(ledger)] == [16, 0]
+    capsys.readouterr()
+    assert cli(["protocol", "ledger", "--ledger", str(ledger)]) == 0
+    assert capsys.readouterr().out.startswith("2 --final run(s)")
