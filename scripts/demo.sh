@@ -3,6 +3,7 @@
 # through the learned policy.
 #   bash scripts/demo.sh [episode_runner parameters as name:=value ...]
 #   e.g. bash scripts/demo.sh episodes:=5 categories:=[refrigerator] clusters:=[0,1,2]
+#   real objects: bash scripts/demo.sh catalogue:=partnet partnet_root:=$HOME/pm splits:=[val]
 #
 # `actaim2 launch sim_panda_ring5` starts sim_node (SAPIEN, Panda, ring5 cameras), fusion_node,
 # control_node and policy_node (the committed checkpoint, actaim2_policy/checkpoints/actaim2_ring5);

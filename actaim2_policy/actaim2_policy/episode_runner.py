@@ -43,8 +43,9 @@ from rclpy.task import Future
 from sensor_msgs.msg import JointState, PointCloud2
 
 from actaim2.keypose import PHASE_NAMES
-from actaim2.policy.episodes import (EpisodeLog, EpisodeRecord, EpisodeSpec, PhaseRecord, is_success, largest_change,
-                                     plan_episodes, summary_table)
+from actaim2.policy.episodes import (EpisodeLog, EpisodeRecord, EpisodeSpec, PhaseRecord,
+                                     catalogue_paths, is_success, largest_change, plan_episodes,
+                                     summary_table)
 from actaim2.policy.requests import is_transient
 from actaim2.policy.retry import BACKOFF_CAP, Backoff, wait_until
 from actaim2.ros_keypose import keypose_data, keypose_msg
@@ -67,6 +68,12 @@ PARAMETERS = {
     "instances": ([-1], "instances of every category (-1: drawn by the simulator from the episode's seed)"),
     "object_paths": ([""], "PartNet-Mobility folders (mobility.urdf inside); when given they replace categories x "
                            "instances; [\"\"] = none (rclpy cannot declare an empty list)"),
+    "catalogue": ("generated", "generated: categories x instances (or object_paths) | partnet: "
+                               "the real folders of the splits below, from partnet_root"),
+    "partnet_root": ("", "the partnet catalogue's folder (object folders + splits.yaml); "
+                         "\"\" = $ACTAIM2_PARTNET"),
+    "splits": ([""], "partnet splits to run (train, val, extra; [\"\"] = val); test splits are "
+                     "refused"),
     "clusters": ([-1], "clusters asked of /sample_mode, one per round over the objects (-1: drawn from the learned prior)"),
     "seed": (0, "seed of episode 0; episode k uses seed + k (scene, mode sample, grasp sampler)"),
     "dof_fraction": (0.5, "initial state of every object DoF as a fraction of its range"),
@@ -106,7 +113,9 @@ class EpisodeRunner(Node):
         self.p = declare_parameters(self, PARAMETERS)
         if self.p["keyposes"] not in MODES:
             raise ValueError(f"keyposes '{self.p['keyposes']}' is not one of {list(MODES)}")
-        self.plan = plan_episodes(int(self.p["episodes"]), self.p["categories"], self.p["instances"], self.p["object_paths"],
+        folders = catalogue_paths(self.p["catalogue"], self.p["partnet_root"], self.p["splits"])
+        self.plan = plan_episodes(int(self.p["episodes"]), self.p["categories"],
+                                  self.p["instances"], folders or self.p["object_paths"],
                                   self.p["clusters"], int(self.p["seed"]))
         self.stop = stop
         self.policy = self.p["keyposes"] == "policy"

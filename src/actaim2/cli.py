@@ -26,6 +26,7 @@ COMMANDS: dict[tuple[str, ...], tuple[str, str]] = {
     ("train",): ("actaim2.train.train_cli", "train the policy: mode selector, action predictor, joint phase"),
     ("validate",): ("actaim2.train.validate_cli", "curves and validation figures of a training run (errors in mm and deg, cluster usage)"),
     ("evaluate",): ("actaim2.eval.evaluate_cli", "SSR and Mode SSR tables of the policy and the baselines in simulation"),
+    ("protocol",): ("actaim2.eval.protocol_cli", "write results/protocol.lock; count the ledger"),
     ("eval-compare",): ("actaim2.eval.compare_cli", "two evaluation runs of the same samples, paired: SSRs, discordant samples, exact McNemar p"),
     ("eval-standin",): ("actaim2.eval.standin_cli", "the three-drawer stand-in: push / pull success before and after fine-tuning, per cluster"),
     ("parity",): ("actaim2.eval.parity_cli", "the ROS loop against the library evaluation on 20 fixed (object, seed, cluster) tuples"),

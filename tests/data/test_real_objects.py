@@ -18,8 +18,9 @@ from partnet_shared import shared_partnet  # noqa: E402
 
 def test_folders_get_their_category_and_a_split_by_category_or_from_yaml(tmp_path):
     root = shared_partnet()
-    found = {o.object_id: o for o in folder_objects(root)}
-    assert sorted(found) == sorted(["101773", "102456", "1053", "22241", "45780"])
+    names = ["101773", "102456", "1053", "22241", "45780"]
+    found = {o.object_id: o for name in names for o in folder_objects(root / name)}
+    assert sorted(found) == sorted(names)
     assert found["101773"].category == "oven" and found["101773"].split == UNSEEN_CATEGORY  # not a catalogue category
     assert found["102456"].category == "box" and found["102456"].split == UNSEEN_CATEGORY  # a held-out category
     for name in ("1053", "22241", "45780"):  # training categories: seen or unseen instance, fixed per folder name
@@ -28,7 +29,8 @@ def test_folders_get_their_category_and_a_split_by_category_or_from_yaml(tmp_pat
 
     yaml_file = tmp_path / "splits.yaml"
     yaml_file.write_text("45780: heldout_category\n22241: train_seen\n")
-    chosen = {o.object_id: o.split for o in folder_objects(root, read_object_splits(yaml_file))}
+    splits = read_object_splits(yaml_file)
+    chosen = {o.object_id: o.split for name in names for o in folder_objects(root / name, splits)}
     assert chosen["45780"] == UNSEEN_CATEGORY and chosen["22241"] == TRAIN and chosen["101773"] == UNSEEN_CATEGORY
     yaml_file.write_text("45780: somewhere\n")
     with pytest.raises(ValueError, match="somewhere"):
@@ -36,7 +38,7 @@ def test_folders_get_their_category_and_a_split_by_category_or_from_yaml(tmp_pat
 
 
 def test_one_trajectory_is_collected_on_a_real_folder(tmp_path):
-    (cabinet,) = [o for o in folder_objects(shared_partnet()) if o.object_id == "45780"]
+    (cabinet,) = folder_objects(shared_partnet() / "45780")
     config = CollectConfig(out=tmp_path / "ds", objects=(), folders=(cabinet,), per_object={"random": 1}, workers=0,
                            render_path="raycast", hull_cache=tmp_path / "hulls", show_progress=False)
     (task,) = stage_tasks(config, "random", range(1))

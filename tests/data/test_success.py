@@ -92,7 +92,8 @@ def test_calibration_needs_both_outcomes_and_skips_ambiguous_successes():
     scores, model, calibrated = visual_labels(entries, {f"t{k}": [p] for k, p in enumerate(parts)})
     assert calibrated and label_metrics(scores > model.threshold, gt)["accuracy"] > 0.9
     with pytest.raises(ValueError, match="calibration split"):
-        visual_labels(entries, {f"t{k}": [p] for k, p in enumerate(parts)}, calibration_split="train_unseen_instance")
+        visual_labels(entries, {f"t{k}": [p] for k, p in enumerate(parts)},
+                      calibration_splits=("train_unseen_instance",))
 
 
 def test_a_reach_needs_two_trajectories_at_the_same_stop():

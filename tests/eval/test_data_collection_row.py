@@ -57,7 +57,10 @@ def write_dataset(root: Path, per_object: int = 16) -> None:
 @pytest.mark.timeout(600)
 def test_data_collection_row_fits_and_executes(tmp_path) -> None:
     write_dataset(tmp_path / "ds")
-    samplers = data_collection_samplers(tmp_path / "ds")
+    objects = [EvalObject("train_seen", "storage_furniture", 0),
+               EvalObject("heldout_category", "box", 0),
+               EvalObject("heldout_category", "box", 1)]  # box 1: not collected
+    samplers = data_collection_samplers(tmp_path / "ds", objects)
     assert set(samplers) == {"storage_furniture_000", "box_000"}
     assert all(s.n_clusters >= 1 for s in samplers.values())
     perception = load_perception_config("ring5")

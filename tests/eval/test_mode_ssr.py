@@ -32,10 +32,27 @@ def test_known_answer() -> None:
 
 def test_modes_need_separate_clusters() -> None:
     # one cluster does everything: the 2nd mode gets another cluster, where it never happens
-    table = {0: [CLOSE, OPEN, CLOSE, OPEN], 1: [None] * 4}
+    table = {0: [CLOSE, CLOSE, OPEN, OPEN], 1: [None] * 4}
     first, second = object_mode_ssr(samples(table), 2, "collapsed")
-    assert first.group == 0 and second.group == 1
+    assert (first.mode, second.mode) == (CLOSE, OPEN) and first.group == 0 and second.group == 1
     assert second.rate.successes == 0
+
+
+def test_modes_are_ranked_on_half_a_only() -> None:
+    # all samples: OPEN 3, CLOSE 2 (OPEN 1st);
+    # half A (even repetitions): CLOSE 2, OPEN 1 (CLOSE 1st)
+    table = {0: [CLOSE, OPEN, CLOSE, OPEN], 1: [OPEN, None, None, None]}
+    assert rank_modes(samples(table)) == [OPEN, CLOSE]
+    first, second = object_mode_ssr(samples(table), 2, "half A")
+    # group 0's half B only opens
+    assert (first.mode, first.group, first.rate.successes) == (CLOSE, 0, 0)
+    assert (second.mode, second.group, second.rate.successes) == (OPEN, 1, 0)
+    # a mode seen in half B only is no mode: it cannot have been chosen for
+    first, second = object_mode_ssr(samples({0: [CLOSE, OPEN, CLOSE, OPEN]}), 2, "B only")
+    assert first.mode == CLOSE and second.mode is None and second.rate.trials == 2
+    # a halving given explicitly: repetitions 1 and 3 in half A turn the answer around
+    first, _ = object_mode_ssr(samples(table), 2, "odd A", half_a={(0, 1), (0, 3), (1, 1), (1, 3)})
+    assert (first.mode, first.group, first.rate.successes, first.rate.trials) == (OPEN, 0, 0, 2)
 
 
 def test_split_half_is_unbiased_where_max_over_clusters_is_inflated() -> None:

@@ -56,7 +56,7 @@ from actaim2.data.labelling import EMBEDDINGS_FILE, ENCODER_FILE, fit_default_en
 from actaim2.data.object_cloud import CloudConfig, object_cloud
 from actaim2.data.random_sampler import RandomSampler, SamplingConfig
 from actaim2.data.real_objects import FolderObject
-from actaim2.data.splits import TRAIN, TRAINING_SPLITS, check_no_leak, split_of
+from actaim2.data.splits import CALIBRATION_SPLITS, TRAINING_SPLITS, check_no_leak, split_of
 from actaim2.data.stats import RUNS_FILE
 from actaim2.data.storage import (SKIPPED_FILE, DatasetReader, DatasetWriter, EncodedTrajectory, encode_trajectory,
                                   object_of, trajectory_id)
@@ -405,7 +405,8 @@ def _label(config: CollectConfig) -> dict:
             reader = DatasetReader(config.out)
             model, _ = fit_default_encoder(reader, config.encoder_trajectories, config.encoder_steps, config.seed, config.show_progress)
             model.save(encoder)
-    return label_dataset(config.out, encoder, TRAIN, workers=config.workers, show_progress=config.show_progress)
+    return label_dataset(config.out, encoder, CALIBRATION_SPLITS, workers=config.workers,
+                         show_progress=config.show_progress)
 
 
 def fit_gmm_samplers(config: CollectConfig, round_start: int) -> dict[str, GMMAdaptiveSampler]:
@@ -418,7 +419,8 @@ def fit_gmm_samplers(config: CollectConfig, round_start: int) -> dict[str, GMMAd
     with np.load(config.out / EMBEDDINGS_FILE) as f:
         z = dict(zip(f["ids"].tolist(), f["z"]))
     before = sorted((e for e in reader.entries if e["sampler"] != "gmm" or e["index"] < round_start), key=lambda e: e["id"])
-    scores, model, _ = visual_labels(before, measure_motions(config.out, workers=config.workers, show_progress=False), TRAIN)
+    motions = measure_motions(config.out, workers=config.workers, show_progress=False)
+    scores, model, _ = visual_labels(before, motions)
     sampling = SamplingConfig.for_robot(load_robot_spec(config.robot))
     by_object: dict[str, list[int]] = {}
     for k, e in enumerate(before):
@@ -461,9 +463,11 @@ def collect(config: CollectConfig) -> dict:
     torch.set_num_threads(1)
     SamplingConfig.for_robot(load_robot_spec(config.robot))  # a robot without reach or hand geometry fails here, not in a worker
     n_gmm = config.per_object.get("gmm", 0)
-    if n_gmm > 0 and not any(split == TRAIN for _, _, _, split, _ in collection_objects(config)):
-        raise ValueError(f"GMM-adaptive sampling needs visual labels, whose threshold is calibrated on {TRAIN} "
-                         f"objects: add some, or collect with --gmm 0")
+    splits = {split for _, _, _, split, _ in collection_objects(config)}
+    if n_gmm > 0 and not splits & set(CALIBRATION_SPLITS):
+        raise ValueError(f"GMM-adaptive sampling needs visual labels, whose threshold is "
+                         f"calibrated on {' or '.join(CALIBRATION_SPLITS)} objects: add some, or "
+                         f"collect with --gmm 0")
     perception = collection_perception(config)
     config = replace(config, render_path=perception.render_path)  # workers take the resolved path as it is
     if (config.out / "dataset.json").exists():  # resuming: the pictures must be taken as before
@@ -488,7 +492,8 @@ def collect(config: CollectConfig) -> dict:
             if summary["trajectories"] + summary["skipped"] + summary["errors"] == 0:  # nothing left to replace
                 break
             report["stages"].append(summary)
-        if n_gmm > 0 or any(e["split"] == TRAIN for e in writer.entries):  # labels need TRAIN trajectories
+        # labels need trajectories of a calibration split
+        if n_gmm > 0 or any(e["split"] in CALIBRATION_SPLITS for e in writer.entries):
             report["labelling"] = _label(config)
         for r in range(config.rounds if n_gmm > 0 else 0):
             indices = range(r * n_gmm // config.rounds, (r + 1) * n_gmm // config.rounds)

@@ -5,6 +5,8 @@ Examples:
     actaim2 collect --out data/small --instances-per-category 1 --random 10 --grasp 10 --gmm 5
     actaim2 collect --out data/ds --vgg19-weights vgg19-dcbb9e9d.pth         # E = a user's VGG-19
     actaim2 collect --out data/pm --objects ~/partnet-mobility --object-splits splits.yaml   # real folders
+    actaim2 collect --out data/pm --catalogue partnet --partnet-root ~/pm        # its train split
+    actaim2 collect --out data/pm --catalogue partnet --splits train,val --object table:0
     actaim2 collect --out data/ds --ray auto --workers 32                        # on a Ray cluster
     actaim2 collect --out data/ds --actions-per-placement 4                      # 4 trajectories per reset
     actaim2 collect --out data/ds --splits train_seen,train_extra                # twice the training objects
@@ -17,17 +19,38 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-DEFAULT_SPLITS = "train_seen,train_unseen_instance,heldout_category"
+if TYPE_CHECKING:
+    from actaim2.data.real_objects import FolderObject
+
+
+def add_catalogue_arguments(parser: argparse.ArgumentParser) -> None:
+    """``--catalogue`` and ``--partnet-root``, shared by collect, train, evaluate and validate."""
+    parser.add_argument("--catalogue", choices=["generated", "partnet"], default="generated",
+                        help="where objects and split names come from: the generated catalogue "
+                             "(train_seen, train_unseen_instance, heldout_category, train_extra) "
+                             "or "
+                             "real PartNet-Mobility folders split by the splits.yaml of "
+                             "--partnet-root (train, val, test_unseen_instance, "
+                             "test_unseen_category, extra; actaim2.data.real_objects)")
+    parser.add_argument("--partnet-root", type=Path,
+                        help="the partnet catalogue's folder (object folders + splits.yaml); "
+                             "default $ACTAIM2_PARTNET")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, required=True, help="dataset folder (created, or resumed if it exists)")
-    parser.add_argument("--splits", default=DEFAULT_SPLITS, help=f"catalogue splits to collect on (default {DEFAULT_SPLITS})")
+    add_catalogue_arguments(parser)
+    parser.add_argument("--splits", help="the catalogue's splits to collect on (comma separated; "
+                                         "default: generated train_seen,train_unseen_instance,"
+                                         "heldout_category; partnet train)")
     parser.add_argument("--categories", default="", help="only these categories (comma separated; default all in the splits)")
     parser.add_argument("--instances-per-category", type=int, default=0, help="only the first N instances of each category per split (0 = all)")
     parser.add_argument("--object", action="append", default=[], metavar="CATEGORY:INSTANCE",
-                        help="collect on exactly these objects (repeatable; overrides --splits/--categories)")
+                        help="collect on exactly these generated objects (repeatable; overrides "
+                             "--splits/--categories of the generated catalogue; with --catalogue "
+                             "partnet they are added to its objects)")
     parser.add_argument("--random", type=int, default=50, help="random-sampling trajectories per object")
     parser.add_argument("--grasp", type=int, default=50, help="heuristic-grasp trajectories per object")
     parser.add_argument("--gmm", type=int, default=50, help="GMM-adaptive trajectories per object")
@@ -55,8 +78,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
     parser.add_argument("--objects", type=Path, help="real PartNet-Mobility object folders (a folder of them, or one) instead of "
                                                      "the catalogue (--object adds catalogue objects); hulls prepared first")
-    parser.add_argument("--object-splits", type=Path, help="YAML 'folder name: split' for --objects; other folders split "
-                                                           "by category (actaim2.data.real_objects)")
+    parser.add_argument("--object-splits", type=Path,
+                        help="YAML 'folder name: split' (either catalogue's split names) for "
+                             "--objects; other folders split by category, or refused under "
+                             "--catalogue partnet (default there: its splits.yaml)")
     parser.add_argument("--hull-cache", type=Path, help="convex decompositions of --objects (default ~/.cache/actaim2/hulls)")
     parser.add_argument("--domain-randomisation", metavar="YAML|default",
                         help="randomise lighting, colours, placement, depth noise and extrinsics per reset "
@@ -64,19 +89,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _objects(args: argparse.Namespace) -> list[tuple[str, int]]:
+    """The generated catalogue's objects: ``--object``, else its ``--splits`` (none under
+    partnet)."""
+    from actaim2.data.splits import GENERATED
     from actaim2.sim.objects.catalog import split_instances
 
-    if args.object or args.objects is not None:
-        objects = []
-        for text in args.object:
-            category, _, instance = text.partition(":")
-            if not instance.isdigit():
-                raise ValueError(f"--object takes CATEGORY:INSTANCE, got {text!r}")
-            objects.append((category, int(instance)))
+    objects = []
+    for text in args.object:
+        category, _, instance = text.partition(":")
+        if not instance.isdigit():
+            raise ValueError(f"--object takes CATEGORY:INSTANCE, got {text!r}")
+        objects.append((category, int(instance)))
+    if objects or args.objects is not None or args.catalogue != GENERATED.name:
         return objects
     categories = {c for c in args.categories.split(",") if c}
-    objects = []
-    for split in (s for s in args.splits.split(",") if s):
+    for split in _splits(args):
         chosen: dict[str, list[int]] = {}
         for category, instance in split_instances(split):
             if not categories or category in categories:
@@ -87,10 +114,40 @@ def _objects(args: argparse.Namespace) -> list[tuple[str, int]]:
     return objects
 
 
+def _splits(args: argparse.Namespace) -> tuple[str, ...]:
+    """``--splits`` (or the catalogue's default), each checked to be a split of the catalogue."""
+    from actaim2.data.splits import catalogue
+
+    chosen = catalogue(args.catalogue)
+    if args.splits is None:
+        return chosen.default_collect
+    names = tuple(s for s in args.splits.split(",") if s)
+    return chosen.check_splits(names, "--splits")
+
+
+def _folders(args: argparse.Namespace) -> list[FolderObject]:
+    """Real object folders: ``--objects`` (split by ``--object-splits``, or under partnet by its
+    splits file), else the partnet catalogue's ``--splits``."""
+    from actaim2.data.real_objects import (catalogue_folders, folder_objects, partnet_root,
+                                           partnet_splits, read_object_splits)
+
+    partnet = args.catalogue == "partnet"
+    if args.objects is not None:
+        if args.object_splits is not None:
+            splits = read_object_splits(args.object_splits)
+        else:
+            splits = partnet_splits(partnet_root(args.partnet_root)) if partnet else None
+        return folder_objects(args.objects, splits, listed_only=partnet)
+    if not partnet:
+        return []
+    categories = tuple(c for c in args.categories.split(",") if c)
+    return catalogue_folders(partnet_root(args.partnet_root), _splits(args), categories,
+                             args.instances_per_category)
+
+
 def main(args: argparse.Namespace) -> int:
     from actaim2.data.collect import CollectConfig, collect
     from actaim2.data.encoder import ImageEncoder
-    from actaim2.data.real_objects import folder_objects, read_object_splits
     from actaim2.data.splits import split_of
     from actaim2.parallel import ray_available
     from actaim2.sim.randomisation import load_randomisation
@@ -100,8 +157,7 @@ def main(args: argparse.Namespace) -> int:
         objects = _objects(args)
         for category, instance in objects:
             split_of(category, instance)  # only catalogued objects: their split must be known
-        splits = read_object_splits(args.object_splits) if args.object_splits is not None else None
-        folders = folder_objects(args.objects, splits) if args.objects is not None else []
+        folders = _folders(args)
     except (ValueError, FileNotFoundError) as exc:
         print(f"actaim2 collect: {exc}", file=sys.stderr)
         return 2

@@ -34,7 +34,7 @@ from tqdm import tqdm
 from actaim2.data.encoder import AUTOENCODER_SPEC, ImageEncoder
 from actaim2.data.encoder_training import train_autoencoder
 from actaim2.data.part_motion import MotionConfig, PartMotion, part_motions
-from actaim2.data.splits import TRAIN
+from actaim2.data.splits import CALIBRATION_SPLITS
 from actaim2.data.storage import DatasetReader, write_labels
 from actaim2.data.success import (DEFAULT_MODEL, ReachConfig, SuccessModel, calibrate_threshold, change, label_metrics,
                                    motion_features, part_reaches)
@@ -86,7 +86,8 @@ def dataset_encoder(root: str | Path) -> Path | None:
 def fit_default_encoder(reader: DatasetReader, max_trajectories: int = 150, steps: int = 800, seed: int = 0,
                         show_progress: bool = True) -> tuple[ImageEncoder, list[float]]:
     """Train the autoencoder E on O_init and O_final of (up to) ``max_trajectories`` training trajectories."""
-    train = sorted((e for e in reader.entries if e["split"] == TRAIN), key=lambda e: e["id"])  # independent of append order
+    train = sorted((e for e in reader.entries if e["split"] in CALIBRATION_SPLITS),
+                   key=lambda e: e["id"])  # independent of append order
     if not train:
         raise ValueError(f"{reader.root} has no training-split trajectories to train the encoder on")
     rng = np.random.default_rng(seed)
@@ -251,9 +252,10 @@ def calibrate(parts_per_trajectory: list[list[PartMotion]], gt: np.ndarray,
     return replace(model, threshold=calibrate_threshold(success_scores(parts_per_trajectory, model, reaches), gt))
 
 
-def visual_labels(entries: list[dict], motions: dict[str, list[PartMotion]], calibration_split: str = TRAIN,
+def visual_labels(entries: list[dict], motions: dict[str, list[PartMotion]],
+                  calibration_splits: tuple[str, ...] = CALIBRATION_SPLITS,
                   reaches: list[list[float]] | None = None) -> tuple[np.ndarray, SuccessModel, bool]:
-    """(P(success) per entry, the model, whether it was calibrated on ``calibration_split``).
+    """(P(success) per entry, the model, whether it was calibrated on ``calibration_splits``).
 
     ``reaches``: :func:`object_reaches` of the entries (None: read off them here with the default
     :class:`ReachConfig`). Without enough moved trajectories of both outcomes in the calibration
@@ -262,9 +264,10 @@ def visual_labels(entries: list[dict], motions: dict[str, list[PartMotion]], cal
     """
     parts = [motions[e["id"]] for e in entries]
     reaches = reaches if reaches is not None else object_reaches(entries, motions)
-    calib = [k for k, e in enumerate(entries) if e["split"] == calibration_split]
+    calib = [k for k, e in enumerate(entries) if e["split"] in calibration_splits]
     if not calib:
-        raise ValueError(f"no trajectories in calibration split {calibration_split!r} to calibrate the success label on")
+        raise ValueError(f"no trajectories in calibration split(s) {list(calibration_splits)} to "
+                         f"calibrate the success label on")
     model = calibrate([parts[k] for k in calib], np.array([entries[k]["gt_success"] for k in calib], dtype=bool),
                       [reaches[k] for k in calib])
     return success_scores(parts, model or DEFAULT_MODEL, reaches), model or DEFAULT_MODEL, model is not None
@@ -277,10 +280,12 @@ def _report(labels: np.ndarray, gt: np.ndarray, splits: np.ndarray, calib: np.nd
     }
 
 
-def label_dataset(root: str | Path, encoder_path: str | Path, calibration_split: str = TRAIN, workers: int = 0,
+def label_dataset(root: str | Path, encoder_path: str | Path,
+                  calibration_splits: tuple[str, ...] = CALIBRATION_SPLITS, workers: int = 0,
                   motion_config: MotionConfig = MotionConfig(), reach_config: ReachConfig = ReachConfig(),
                   show_progress: bool = True) -> dict:
-    """Measure motions, embed, calibrate on ``calibration_split``, write labels; returns the report."""
+    """Measure motions, embed, calibrate on ``calibration_splits``, write labels; returns the
+    report."""
     reader = DatasetReader(root)
     if not reader.entries:
         raise ValueError(f"{root} holds no trajectories to label")
@@ -289,11 +294,11 @@ def label_dataset(root: str | Path, encoder_path: str | Path, calibration_split:
     z = embed_dataset(reader, encoder, encoder_digest(encoder_path), show_progress)
     entries = reader.entries
     reaches = object_reaches(entries, motions, reach_config)
-    scores, model, calibrated = visual_labels(entries, motions, calibration_split, reaches)
+    scores, model, calibrated = visual_labels(entries, motions, calibration_splits, reaches)
     labels = scores > model.threshold
     gt = np.array([e["gt_success"] for e in entries], dtype=bool)
     splits = np.array([e["split"] for e in entries])
-    calib = splits == calibration_split
+    calib = np.isin(splits, calibration_splits)
     write_labels(root, [{"id": e["id"], "score": round(float(s), 6), "success": bool(lab)} for e, s, lab in zip(entries, scores, labels)])
 
     parts = [motions[e["id"]] for e in entries]
@@ -326,7 +331,7 @@ def label_dataset(root: str | Path, encoder_path: str | Path, calibration_split:
         "motion_config": asdict(motion_config),
         "reach_config": asdict(reach_config),
         "parts_with_known_reach": float(np.mean(known)) if known else 0.0,
-        "calibration_split": calibration_split,
+        "calibration_split": ",".join(s for s in calibration_splits if s in set(splits)),
         **_report(labels, gt, splits, calib),
         "per_category": {c: {"split": str(splits[categories == c][0]), **label_metrics(labels[categories == c], gt[categories == c])}
                          for c in sorted(set(categories))},

@@ -10,15 +10,21 @@ An object without collected trajectories has no sampler and no Data Collection s
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Sequence
 
 from actaim2.data.collect import CollectConfig, fit_gmm_samplers
 from actaim2.data.gmm_sampler import GMMAdaptiveSampler
 from actaim2.data.storage import DatasetReader
+from actaim2.eval.evalset import EvalObject
 
 
-def data_collection_samplers(data: Path) -> dict[str, GMMAdaptiveSampler]:
-    """Object id -> the GMM-adaptive sampler collection would draw its first adaptive round from."""
+def data_collection_samplers(data: Path,
+                             objects: Sequence[EvalObject]) -> dict[str, GMMAdaptiveSampler]:
+    """Evaluation key of each of ``objects`` that the dataset has trajectories of -> the
+    GMM-adaptive sampler collection would draw its first adaptive round from (the dataset names
+    objects by id: a catalogue object id, or a real folder's name)."""
     info = DatasetReader(data).info
     config = CollectConfig(out=Path(data), objects=(), per_object={}, seed=int(info.get("seed", 0)),
                            robot=info.get("robot", "panda"))
-    return fit_gmm_samplers(config, 0)
+    fitted = fit_gmm_samplers(config, 0)
+    return {o.key: fitted[o.object_id] for o in objects if o.object_id in fitted}

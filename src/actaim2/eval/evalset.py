@@ -1,9 +1,12 @@
 """The fixed evaluation set: which objects, and which seeds, every method is evaluated on.
 
-Objects are the catalogue's splits (``actaim2.sim.objects.catalog.SPLITS``), as in the paper:
-seen objects (``train_seen``: the objects training used, instances 0-7 of the six training
-categories), unseen instances (instances 8-15 of the same categories) and unseen categories
-(window, box, safe). ``--objects DIR`` adds PartNet-Mobility folders as one more split.
+Objects are a catalogue's splits (``actaim2.data.splits.CATALOGUES``). The generated one's, as in
+the paper: seen objects (``train_seen``: the objects training used, instances 0-7 of the six
+training categories), unseen instances (instances 8-15 of the same categories) and unseen
+categories (window, box, safe). The partnet one's: real PartNet-Mobility folders in ``train``
+(seen objects, new scenes), ``val``, ``test_unseen_instance`` and ``test_unseen_category`` (the
+last two only under the protocol lock, ``protocol.py``). ``--objects DIR`` adds
+PartNet-Mobility folders as one more split.
 
 Seeds. Sample ``slot`` of an object resets the scene with ``reset_seed(object, slot)``, which
 draws the placement jitter (and camera noise), and draws its mode / action with
@@ -26,14 +29,21 @@ from pathlib import Path
 
 import numpy as np
 
-from actaim2.data.splits import TRAIN, UNSEEN_CATEGORY, UNSEEN_INSTANCE
+from actaim2.data.splits import (PARTNET, PARTNET_EXTRA, PARTNET_TEST_CATEGORY,
+                                  PARTNET_TEST_INSTANCE, PARTNET_TRAIN, PARTNET_VAL, TRAIN,
+                                  UNSEEN_CATEGORY, UNSEEN_INSTANCE)
 
 EVAL_SET_VERSION = 1
 EVAL_SEED_BASE = 2**31  # collection's reset seeds are all below this
 FOLDERS = "folders"
 SPLITS = (TRAIN, UNSEEN_INSTANCE, UNSEEN_CATEGORY)
 SPLIT_TITLES = {TRAIN: "Seen objects", UNSEEN_INSTANCE: "Unseen instances", UNSEEN_CATEGORY: "Unseen categories",
-                FOLDERS: "PartNet-Mobility folders"}
+                FOLDERS: "PartNet-Mobility folders", PARTNET_TRAIN: "Real, seen objects (train)",
+                PARTNET_VAL: "Real, validation (val)",
+                PARTNET_TEST_INSTANCE: "Real, unseen instances (test)",
+                PARTNET_TEST_CATEGORY: "Real, unseen categories (test)",
+                PARTNET_EXTRA: "Real, other categories (extra)"}
+TABLE_SPLITS = (*SPLITS, *PARTNET.splits, FOLDERS)  # the order tables show splits in
 _RESET, _SAMPLE, _PSEUDO = 1, 2, 3
 
 
@@ -47,8 +57,13 @@ class EvalObject:
     @property
     def key(self) -> str:
         """Stable name in task keys and tables: the catalogue object id, or folder:<name>."""
+        return f"folder:{self.object_id}" if self.folder else self.object_id
+
+    @property
+    def object_id(self) -> str:
+        """The object's id in a collected dataset: the catalogue object id, or the folder name."""
         if self.folder:
-            return f"folder:{Path(self.folder).name}"
+            return Path(self.folder).name
         from actaim2.sim.objects.catalog import object_id
 
         return object_id(self.category, self.instance)
@@ -100,3 +115,13 @@ def folder_objects(root: str | Path) -> list[EvalObject]:
     if not folders:
         raise ValueError(f"{root} holds no PartNet-Mobility object folder (a folder with mobility.urdf)")
     return [EvalObject(FOLDERS, str(read_meta(p).get("model_cat", "unknown")), -1, str(p.resolve())) for p in folders]
+
+
+def partnet_objects(root: str | Path, splits: tuple[str, ...], instances_per_category: int = 0,
+                    categories: tuple[str, ...] = ()) -> list[EvalObject]:
+    """The partnet catalogue's objects of ``splits`` at ``root``
+    (``data.real_objects.catalogue_folders``)."""
+    from actaim2.data.real_objects import catalogue_folders
+
+    return [EvalObject(f.split, f.category, -1, str(Path(f.folder).resolve()))
+            for f in catalogue_folders(Path(root), splits, categories, instances_per_category)]

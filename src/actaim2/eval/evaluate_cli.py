@@ -7,6 +7,10 @@ Examples:
         --data data/ds --objects ~/partnet-mobility/148 --workers 2
     actaim2 evaluate --out runs/eval --checkpoint runs/cpu/policy --ray auto --workers 16          # a Ray cluster
     actaim2 evaluate --out runs/eval --checkpoint runs/cpu/policy --data data/ds --per-group 16    # Mode SSR on 4x the samples
+    actaim2 evaluate --out runs/val --checkpoint runs/pm/policy --data data/pm --catalogue partnet
+    actaim2 evaluate --out runs/test --checkpoint runs/s0/policy --data data/pm \\
+        --catalogue partnet --splits test_unseen_instance,test_unseen_category --per-group 8 \\
+        --final                                   # test splits: under results/protocol.lock
 
 Rows: ActAIM2 (--checkpoint), Goal-RVT (--goal-rvt, default <checkpoint folder>/goal_rvt, with
 the dataset's encoder), VQVAE-RVT (--vqvae), ActAIM's CVAE (--cvae), Data Collection (--data:
@@ -25,6 +29,9 @@ import sys
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
+
+from actaim2.data.collect_cli import add_catalogue_arguments
+from actaim2.eval.protocol_cli import add_protocol_arguments, splits_files
 
 if TYPE_CHECKING:
     from actaim2.eval.presets import Preset
@@ -51,8 +58,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--encoder", type=Path, help="Goal-RVT's encoder E (default: the dataset's encoder.pt)")
     parser.add_argument("--methods", default="", help="only these rows (comma separated: actaim2, data_collection, random, "
                                                       "goal_rvt, vqvae_rvt, actaim_cvae, actaim2_depth, actaim2_single_view)")
-    parser.add_argument("--splits", default="train_seen,train_unseen_instance,heldout_category",
-                        help="catalogue splits to evaluate on ('' = none, with --objects)")
+    add_catalogue_arguments(parser)
+    parser.add_argument("--splits", help="the catalogue's splits to evaluate on ('' = none, with "
+                                         "--objects; default: generated train_seen,"
+                                         "train_unseen_instance,heldout_category; partnet val)")
+    add_protocol_arguments(parser)
     parser.add_argument("--objects", type=Path, help="PartNet-Mobility folder(s) (a folder with mobility.urdf, or a folder of them): an extra split")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (0 = in this process); Ray actors with --ray")
     parser.add_argument("--ray", metavar="ADDRESS", help="run the samples on Ray actors: auto, ray://host:port, or local")
@@ -151,10 +161,15 @@ def _encoder(args: argparse.Namespace, goal_rvt: Path) -> Path | None:
 
 def main(args: argparse.Namespace) -> int:
     from actaim2.control.planner import POLICY_PLANNER
+    from actaim2.data.real_objects import partnet_root
+    from actaim2.data.splits import GENERATED, catalogue
     from actaim2.eval.checkpoints import describe, perception_of
     from actaim2.eval.data_collection import data_collection_samplers
-    from actaim2.eval.evalset import EVAL_SET_VERSION, catalogue_objects, folder_objects
+    from actaim2.eval.evalset import (EVAL_SET_VERSION, catalogue_objects, folder_objects,
+                                      partnet_objects)
     from actaim2.eval.methods import ABLATIONS, PSEUDO_GROUPING, ablation_problem
+    from actaim2.eval.protocol import append_ledger, guarded_ids, protected, read_ledger
+    from actaim2.eval.protocol import check_run as check_protocol
     from actaim2.eval.results import ResultLog, RunMismatchError, check_run
     from actaim2.eval.tables import report
     from actaim2.eval.tasks import plan_tasks
@@ -189,14 +204,32 @@ def main(args: argparse.Namespace) -> int:
             if (c.rig, c.center, c.half_extent) != (perception.rig, perception.center, perception.half_extent):
                 raise ValueError(f"{m}'s checkpoint was trained on rig {c.rig} (cube {c.center}, {c.half_extent}), "
                                  f"{next(iter(configs))}'s on {perception.rig} ({perception.center}, {perception.half_extent})")
-        splits = tuple(s for s in args.splits.split(",") if s)
-        objects = catalogue_objects(splits, preset.instances_per_category, preset.categories)
+        chosen = catalogue(args.catalogue)
+        splits = chosen.default_evaluate
+        if args.splits is not None:
+            splits = chosen.check_splits(tuple(s for s in args.splits.split(",") if s), "--splits")
+        if chosen is GENERATED:
+            objects = catalogue_objects(splits, preset.instances_per_category, preset.categories)
+        else:
+            objects = partnet_objects(partnet_root(args.partnet_root), splits,
+                                      preset.instances_per_category, preset.categories)
         if args.objects is not None:
             objects += folder_objects(args.objects)
         if not objects:
             raise ValueError("no object to evaluate on: give --splits or --objects")
+        given = [args.objects] if args.objects is not None else []
+        named = [(o.split, o.object_id if o.folder else "") for o in objects]
+        guarded = protected(named, guarded_ids(splits_files(args, given)))
+        locked = [described["actaim2"]["weights_sha256"]] if "actaim2" in described else []
+        if args.final and preset.counts.per_cluster != preset.counts.baseline_per_group:
+            raise ValueError("--final: ActAIM2 and the grouped baselines need as many samples per "
+                             "group: pass --per-group N")
+        lock = check_protocol("evaluate", guarded, args.final, args.lock, locked, EVAL_SET_VERSION,
+                              preset.counts.per_cluster)
         render_path = _render_path(perception, args)
-        gmm = data_collection_samplers(args.data) if "data_collection" in methods else None
+        gmm = None
+        if "data_collection" in methods:
+            gmm = data_collection_samplers(args.data, objects)
         encoder = _encoder(args, stems["goal_rvt"]) if "goal_rvt" in methods else None
         run = {"eval_set_version": EVAL_SET_VERSION, "robot": args.robot, "rig": perception.rig, "hand_half_turn": half_turn,
                "pseudo_grouping": PSEUDO_GROUPING, "keypose_alternatives": alternatives, "mode_guidance": guidance,
@@ -223,6 +256,9 @@ def main(args: argparse.Namespace) -> int:
     todo = [t for t in tasks if t.key not in log.done]
     print(f"{len(tasks)} samples ({preset.name}: {len(objects)} objects, rows {', '.join(methods)}); "
           f"{len(tasks) - len(todo)} already done; render path {render_path}")
+    if lock is not None:  # before any sample: an interrupted --final run counts too
+        append_ledger(args.ledger, lock, "evaluate", str(args.out), guarded, locked, len(todo))
+        print(f"this --final run is line {len(read_ledger(args.ledger))} of {args.ledger}")
     started = time.perf_counter()
     errors = log.run(EvalWorker, setup, todo, args.workers, args.ray, not args.no_progress)
     seconds = time.perf_counter() - started

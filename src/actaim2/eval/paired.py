@@ -12,6 +12,10 @@ McNemar's exact test is the two-sided binomial test of ``only_a`` out of ``only_
 discordant samples at 1/2 (McNemar 1947; the exact form is recommended over the chi-squared one
 for the small discordant counts of a category cell, Fagerland et al. 2013). The adoption rules
 in docs/evaluation.md are written against its p-value.
+
+Two methods of one run are paired the same way, by scene: :func:`scene_pairs` keeps the scenes
+(object and reset seed) both ran, per seed's run, and pools each object's over the seeds for
+``stats.paired_bootstrap`` (the protocol's "beats Data Collection" rule).
 """
 from __future__ import annotations
 
@@ -19,7 +23,7 @@ from collections import defaultdict
 from dataclasses import dataclass
 from typing import Mapping, Sequence
 
-from actaim2.eval.stats import Rate
+from actaim2.eval.stats import PairedCounts, Rate
 from actaim2.eval.tables import AVG
 from actaim2.keypose import PHASE_NAMES
 
@@ -119,3 +123,24 @@ def paired_table(pairs: Sequence[tuple[dict, dict]], titles: Mapping[str, str] |
                      f"{c.rate_a.cell()} | {c.rate_b.cell()} | {c.only_a} | {c.only_b} | {c.p_value:.3g} | "
                      f"{100 * c.ran_a / c.samples:.1f} % / {100 * c.ran_b / c.samples:.1f} % |")
     return lines
+
+
+def scene_pairs(runs: Sequence[Sequence[dict]], method_a: str,
+                method_b: str) -> list[PairedCounts]:
+    """Per object, the scenes (same object and reset seed, within one seed's run) that both
+    methods ran, pooled over ``runs`` (one record list per seed), by object key; objects with
+    none left out."""
+    totals: dict[str, list] = {}
+    for records in runs:
+        by_scene: dict[str, dict[tuple[str, int], dict]] = {method_a: {}, method_b: {}}
+        for r in records:
+            if r["method"] in by_scene:
+                by_scene[r["method"]][r["object"], r["reset_seed"]] = r
+        for scene in sorted(set(by_scene[method_a]) & set(by_scene[method_b])):
+            ra, rb = by_scene[method_a][scene], by_scene[method_b][scene]
+            entry = totals.setdefault(scene[0], [ra["category"], 0, 0, 0])
+            entry[1] += 1
+            entry[2] += int(bool(ra["success"]))
+            entry[3] += int(bool(rb["success"]))
+    return [PairedCounts(category, scenes, sa, sb)
+            for _, (category, scenes, sa, sb) in sorted(totals.items())]

@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections import defaultdict
 from typing import Iterable, Sequence
 
-from actaim2.eval.evalset import FOLDERS, SPLIT_TITLES, SPLITS
+from actaim2.eval.evalset import SPLIT_TITLES, SPLITS, TABLE_SPLITS
 from actaim2.eval.methods import METHODS, NOT_REPRODUCED, PSEUDO_CLUSTERS
 from actaim2.eval.mode_dependence import PERMUTATIONS, dependence_cells
 from actaim2.eval.mode_ssr import GroupSample, ModeResult, object_mode_ssr, pooled
@@ -41,7 +41,7 @@ PAPER_MODE = {("actaim2", 1): (71.5, 61.4, 48.2), ("actaim2", 2): (27.0, 20.9, 6
 
 def _splits(records: Sequence[dict]) -> list[str]:
     present = {r["split"] for r in records}
-    return [s for s in (*SPLITS, FOLDERS) if s in present]
+    return [s for s in TABLE_SPLITS if s in present]
 
 
 def _categories(records: Sequence[dict], split: str) -> list[str]:

@@ -3,6 +3,7 @@
 * :func:`plan_episodes` - episode k runs object ``k mod n`` (object folders when given, else
   every category x instance) with cluster ``clusters[(k div n) mod len(clusters)]`` and seed
   ``seed + k``: every object is visited before the next cluster, so a short run covers the objects.
+* :func:`catalogue_paths` - the object folders of the partnet catalogue's splits.
 * :func:`largest_change` - the paper's success criterion against what ``/reset_scene`` returned
   (``dof_initial`` and the limits): the largest |DoF change| as a fraction of its range.
 * :class:`EpisodeRecord` - one JSON line per episode (``EpisodeLog``); :func:`summary_table`
@@ -40,6 +41,28 @@ def plan_episodes(episodes: int, categories: Sequence[str], instances: Sequence[
         raise ValueError("no cluster to run: give clusters (-1 samples one from the learned prior)")
     return [EpisodeSpec(k, *objects[k % len(objects)], int(clusters[(k // len(objects)) % len(clusters)]), seed + k)
             for k in range(episodes)]
+
+
+def catalogue_paths(catalogue_name: str, root: str, splits: Sequence[str]) -> list[str]:
+    """Object folders to run: none for the generated catalogue (categories x instances name its
+    objects), the partnet catalogue's folders of ``splits`` (at ``root``, "" = $ACTAIM2_PARTNET).
+    Test splits are refused: they run only under the evaluation protocol (evaluate --final)."""
+    from actaim2.data.real_objects import catalogue_folders, partnet_root
+    from actaim2.data.splits import PARTNET, catalogue
+
+    chosen = tuple(s for s in splits if s)
+    if catalogue(catalogue_name) is not PARTNET:
+        if chosen:
+            raise ValueError(f"splits {list(chosen)} are for the partnet catalogue; the generated "
+                             f"one's objects are categories x instances")
+        return []
+    tests = [s for s in chosen if s in PARTNET.test]
+    if tests:
+        raise ValueError(f"splits {tests} are test splits: they run only under the evaluation "
+                         f"protocol (actaim2 evaluate --final, docs/evaluation.md)")
+    where = partnet_root(Path(root) if root else None)
+    folders = catalogue_folders(where, chosen or PARTNET.default_evaluate)
+    return [f.folder for f in folders]
 
 
 def largest_change(dof_names: Sequence[str], initial: Sequence[float], lower: Sequence[float], upper: Sequence[float],

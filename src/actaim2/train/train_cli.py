@@ -3,6 +3,7 @@
 Examples:
     actaim2 train --data data/ds --out runs/cpu                       # CGMVAE + predictor, CPU default config
     actaim2 train --data data/ds --out runs/cpu --resume              # continue an interrupted run
+    actaim2 train --data data/pm --out runs/pm --catalogue partnet    # no val/test object in it
     actaim2 train --data data/ds --out runs/cvae --selector cvae --phases selector joint \\
         --init-from runs/cpu/goal_rvt                                 # a baseline on the Goal-RVT predictor
     torchrun --nproc-per-node 2 --master-addr 127.0.0.1 -m actaim2.cli train --data data/ds --out runs/ddp  # DDP
@@ -19,10 +20,13 @@ import argparse
 import json
 from pathlib import Path
 
+from actaim2.data.collect_cli import add_catalogue_arguments
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--data", type=Path, required=True, help="dataset folder (actaim2 collect)")
     parser.add_argument("--out", type=Path, required=True, help="run folder: checkpoints, history.jsonl, tensorboard/")
+    add_catalogue_arguments(parser)
     parser.add_argument("--config", default="cpu_default", help="training YAML, or a bundled name (cpu_default, gpu_rvt)")
     parser.add_argument("--perception", default="ring5", help="perception configuration: rig name or YAML")
     parser.add_argument("--selector", choices=["cgmvae", "cvae", "vqvae"], help="override the config's selector kind")
@@ -59,6 +63,16 @@ def main(args: argparse.Namespace) -> int:
     if args.threads < 0:
         print(f"actaim2 train: --threads {args.threads} is negative")
         return 2
+    if args.catalogue == "partnet":
+        from actaim2.data.real_objects import check_training_objects, partnet_root, partnet_splits
+        from actaim2.data.storage import DatasetReader
+
+        try:  # no trajectory of a val or test object may reach the models
+            splits = partnet_splits(partnet_root(args.partnet_root))
+            check_training_objects(DatasetReader(args.data).entries, splits)
+        except (ValueError, FileNotFoundError) as exc:
+            print(f"actaim2 train: {exc}")
+            return 2
     set_cpu_threads(args.threads)
     config = load_config(args.config)
     changes = {}

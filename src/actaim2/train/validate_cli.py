@@ -4,6 +4,7 @@ Examples:
     actaim2 validate runs/cpu --data data/v2                       # runs/cpu/policy on train_unseen_instance
     actaim2 validate runs/ring5 --data data/v2 --checkpoint actaim2_policy/checkpoints/actaim2_ring5   # no curves
     actaim2 validate runs/cpu --data data/v2 --split heldout_category
+    actaim2 validate runs/pm --data data/pm --catalogue partnet            # runs/pm/policy on val
 
 Writes into the run folder: ``curves.png`` (training and validation curves from
 ``history.jsonl``; a folder without it, e.g. for a shipped checkpoint, gets none), ``validation.json`` and ``validation.md`` (translation, rotation and gripper
@@ -19,7 +20,12 @@ import dataclasses
 import json
 from pathlib import Path
 
+from actaim2.data.collect_cli import add_catalogue_arguments
+from actaim2.data.splits import GENERATED, PARTNET, PARTNET_VAL, UNSEEN_INSTANCE
+from actaim2.eval.protocol_cli import add_protocol_arguments, splits_files
 from actaim2.train.train_cli import add_threads_argument
+
+DEFAULT_SPLIT = {GENERATED.name: UNSEEN_INSTANCE, PARTNET.name: PARTNET_VAL}  # per catalogue
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -27,7 +33,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         "--checkpoint any folder to write the figures into (no curves without history.jsonl)")
     parser.add_argument("--data", type=Path, required=True, help="the dataset folder the run was trained on")
     parser.add_argument("--checkpoint", type=Path, help="policy checkpoint stem (default <run>/policy)")
-    parser.add_argument("--split", default="train_unseen_instance", help="split whose successes are measured")
+    add_catalogue_arguments(parser)
+    parser.add_argument("--split", help="split whose successes are measured (default: generated "
+                                        "train_unseen_instance, partnet val; a test split only "
+                                        "with --final under the protocol lock)")
+    add_protocol_arguments(parser)
     parser.add_argument("--perception", default="ring5", help="perception configuration the checkpoint was trained with")
     parser.add_argument("--noise-scale", type=float, default=None, metavar="S",
                         help="spread of the selector's draws (ModeSelector.sample; default as policy_node's noise_scale, "
@@ -37,7 +47,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from actaim2.data.storage import object_of
+    from actaim2.data.splits import catalogue
+    from actaim2.data.storage import DatasetReader, object_of
+    from actaim2.eval.protocol import append_ledger, guarded_ids, protected
+    from actaim2.eval.protocol import check_run as check_protocol
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.perception.config import load_perception_config
     from actaim2.policy.inference import NOISE_SCALE, check_noise_scale
@@ -70,11 +83,30 @@ def main(args: argparse.Namespace) -> int:
     if policy.selector is None or policy.predictor is None:
         print(f"actaim2 validate: {stem} must hold both a selector and a predictor")
         return 1
-    ensure_cache(args.data, perception, [args.split], not args.no_progress, allow_held_out=True)  # measuring, not training
-    data = open_cache(args.data, perception, [args.split])
+    split = args.split or DEFAULT_SPLIT[args.catalogue]
+    digest = policy.meta.get("weights_sha256")
+    try:
+        catalogue(args.catalogue).check_splits((split,), "--split")
+        reader = DatasetReader(args.data)
+        measured = {(e["split"], e["object_id"] if e.get("instance", -1) < 0 else "")
+                    for e in reader.entries if e["split"] == split}
+        folders = [Path(folder) for folder, _ in reader.info.get("folders", [])]
+        test_ids = guarded_ids(splits_files(args, folders))
+        guarded = protected(sorted(measured | {(split, "")}), test_ids)
+        lock = check_protocol("validate", guarded, args.final, args.lock, [str(digest)])
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"actaim2 validate: {exc}")
+        return 2
+    if lock is not None:  # before any measurement: an interrupted --final run counts too
+        trajectories = sum(e["split"] == split for e in reader.entries)
+        append_ledger(args.ledger, lock, "validate", str(args.run), guarded, [str(digest)],
+                      trajectories)
+    # measuring, not training
+    ensure_cache(args.data, perception, [split], not args.no_progress, allow_held_out=True)
+    data = open_cache(args.data, perception, [split])
     if data.outcomes is None:
-        print(f"actaim2 validate: {args.data} split {args.split} has trajectories without a DoF measurement "
-              "(dof_change), so no outcome to follow: validate a simulated collection")
+        print(f"actaim2 validate: {args.data} split {split} has trajectories without a DoF "
+              "measurement (dof_change), so no outcome to follow: validate a simulated collection")
         return 1
     placement = CubePlacement.of(perception)
     predictions = predict_keyframes(policy.selector, policy.predictor, data, placement, device)
@@ -86,16 +118,15 @@ def main(args: argparse.Namespace) -> int:
     drawn = drawn_following(policy.selector, policy.predictor, data, placement, predictions, objects, outcomes, device,
                             noise_scale=noise_scale)
     swapped = swapped_following(policy.selector, policy.predictor, data, placement, predictions, objects, outcomes, device)
-    digest = policy.meta.get("weights_sha256")
     report = {"checkpoint": str(stem), "weights_sha256": digest, "dataset": str(args.data),
-              "dataset_digest": dataset_digest(args.data), "split": args.split,
+              "dataset_digest": dataset_digest(args.data), "split": split,
               "noise_scale": noise_scale,
               "actions": {k: {p: dataclasses.asdict(f) for p, f in v.items()} for k, v in actions.items()}, "selector": selector,
               "outcome_following": {p: dataclasses.asdict(f) for p, f in follow.items()},
               "drawn_following": {p: dataclasses.asdict(f) for p, f in drawn.items()},
               "swapped_following": {p: dataclasses.asdict(f) for p, f in swapped.items()}, "mode_chain": dataclasses.asdict(chain)}
     (args.run / "validation.json").write_text(json.dumps(report, indent=2) + "\n")
-    text = markdown(args.split, actions, selector, follow, chain, drawn, swapped, noise_scale)
+    text = markdown(split, actions, selector, follow, chain, drawn, swapped, noise_scale)
     (args.run / "validation.md").write_text(text)
     print(text)
     written = [args.run / "validation.json", args.run / "validation.md"]
