@@ -51,6 +51,24 @@ def test_handle_is_segmented_and_grasped_antipodally(door_with_handle):
     assert not collides(PANDA.gripper, door_with_handle.points, T)
 
 
+def test_a_full_height_bar_handle_is_a_part_and_a_body_is_not():
+    """A refrigerator's 45 cm vertical bar is longer than any knob, but thin: a part to grasp; a
+    45 x 20 cm block standing off the door is a body."""
+    ys, zs = np.meshgrid(np.arange(-0.3, 0.3, 0.005), np.arange(0.1, 0.9, 0.005))
+    face = np.c_[np.full(ys.size, 0.6), ys.ravel(), zs.ravel()]
+    t, a = np.meshgrid(np.arange(0.25, 0.70, 0.004), np.linspace(0, 2 * np.pi, 24, endpoint=False))
+    bar = np.c_[0.56 + HANDLE_RADIUS * np.cos(a.ravel()), 0.2 + HANDLE_RADIUS * np.sin(a.ravel()), t.ravel()]
+    by, bz = np.meshgrid(np.arange(-0.25, -0.05, 0.005), np.arange(0.25, 0.70, 0.005))
+    block = np.r_[np.c_[np.full(by.size, 0.57), by.ravel(), bz.ravel()], np.c_[np.full(by.size, 0.59), by.ravel(), bz.ravel()]]
+    points = np.r_[face, bar, block]
+    cloud = ObjectCloud(points, np.zeros((len(points), 3), np.uint8))
+    config = CloudConfig(center=(0.6, 0.0, 0.5))
+    segments = part_segments(cloud, config, np.random.default_rng(0))
+    on_bar = [seg for seg in segments if np.abs(points[seg, 1] - 0.2).max() < 0.02]
+    assert len(on_bar) == 1 and np.ptp(points[on_bar[0], 2]) > config.segment_max_extent
+    assert not any(np.any(points[seg, 1] < -0.04) for seg in segments)  # the block is no part
+
+
 @pytest.mark.parametrize("config", [PANDA, KINOVA], ids=["panda", "kinova_j2s6s200"])
 def test_grasp_sampler_builds_a_full_action_on_the_handle(door_with_handle, config):
     sampler = HeuristicGraspSampler(CloudConfig(center=(0.6, 0.0, 0.5)), config)

@@ -30,7 +30,9 @@ class CloudConfig:
     dbscan_eps: float = 0.015
     dbscan_min_points: int = 8
     segment_min_points: int = 15
-    segment_max_extent: float = 0.35  # m; larger clusters are bodies, not handles or knobs
+    segment_max_extent: float = 0.35  # m; larger clusters are bodies, not handles or knobs ...
+    segment_max_bar_width: float = 0.08  # m: ... unless they are bars no wider than a hand's opening
+    #   across both their narrow axes (a refrigerator's full-height handle)
     max_segments: int = 8  # the largest ones; the rest are mostly strips left along face edges
 
 
@@ -124,10 +126,19 @@ def _narrower_side(points: np.ndarray) -> float:
     return float(np.ptp(centred @ vt[1]))
 
 
+def _principal_extents(points: np.ndarray) -> np.ndarray:
+    """The extents of ``points`` along their principal axes, largest first."""
+    centred = points - points.mean(axis=0)
+    _, _, axes = np.linalg.svd(centred, full_matrices=False)
+    return np.ptp(centred @ axes.T, axis=0)
+
+
 def part_segments(cloud: ObjectCloud, config: CloudConfig, rng: np.random.Generator) -> list[np.ndarray]:
     """Index arrays of compact clusters left after removing the object's large planar faces.
 
-    These are the parts a hand can close on: handles, knobs, buttons, levers.
+    These are the parts a hand can close on: handles, knobs, buttons, levers, and bars of any
+    length (a cluster longer than ``segment_max_extent`` is kept when it is no wider than
+    ``segment_max_bar_width`` across: a long handle, not a body).
     """
     remaining = np.arange(len(cloud.points))
     for _ in range(config.max_part_planes):
@@ -143,7 +154,9 @@ def part_segments(cloud: ObjectCloud, config: CloudConfig, rng: np.random.Genera
     segments = []
     for label in range(labels.max(initial=-1) + 1):
         idx = remaining[labels == label]
-        extent = np.ptp(cloud.points[idx], axis=0).max() if len(idx) else 0.0
-        if len(idx) >= config.segment_min_points and extent <= config.segment_max_extent:
+        if len(idx) < config.segment_min_points:
+            continue
+        length, width, _ = _principal_extents(cloud.points[idx])
+        if length <= config.segment_max_extent or width <= config.segment_max_bar_width:
             segments.append(idx)
     return sorted(segments, key=len, reverse=True)[: config.max_segments]
