@@ -21,10 +21,12 @@ from actaim2.sim.env import SimEnv
 from actaim2.sim.objects.hulls import HullCache
 from actaim2.sim.objects.surface import surface_points
 from actaim2.sim.objects.mesh import write_obj
+from actaim2.sim.objects.physics_table import COUNTERBALANCED
 from partnet_shared import box, shared_partnet
 
 SPHERE_RADIUS = 0.015
 DRAWER_AND_DOOR, TWO_DOORS, TABLE, FAUCET, BOX, OVEN = "40147", "45780", "22241", "1053", "102456", "101773"
+DROP_DOWN_FLAP, LIFT_UP_FLAP = "45166", "46408"  # cabinets whose door hinges on its bottom / top edge
 
 
 @pytest.fixture(scope="module")
@@ -141,15 +143,22 @@ def double_door(folder):
     return folder
 
 
-@pytest.mark.parametrize("name", [DRAWER_AND_DOOR, TWO_DOORS, TABLE, FAUCET, BOX, OVEN, "overlapping doors"])
+@pytest.mark.parametrize("name", [DRAWER_AND_DOOR, TWO_DOORS, TABLE, FAUCET, BOX, OVEN, DROP_DOWN_FLAP, LIFT_UP_FLAP,
+                                  "overlapping doors"])
 def test_parts_at_rest_stay_at_rest(env, name, tmp_path):
     """The links of one object do not collide with each other: PartNet parts interpenetrate at
-    their seams, and if they collided PhysX would push the parts apart."""
+    their seams, and if they collided PhysX would push the parts apart. Flaps (doors on a
+    horizontal hinge) are held where they are left, as their stays hold them, and one hinged
+    at the bottom edge swings above the floor (the object stands raised)."""
     if name == "overlapping doors":
         info = env.reset(folder=double_door(tmp_path / "doors"), seed=0, jitter=False, dof_fraction=0.0)
         np.testing.assert_allclose(info.dof_initial, info.dof_lower, atol=1e-3)  # the reset's settling pushed nothing
     else:
         info = reset(env, name)
+    if name in (DROP_DOWN_FLAP, LIFT_UP_FLAP):
+        np.testing.assert_allclose(info.dof_initial, (info.dof_lower + info.dof_upper) / 2, atol=0.01)
+        assert all(d.behaviour == COUNTERBALANCED for d in env.object.dynamics.dynamics)
+        assert (env.object.base_height > 0.02) == (name == DROP_DOWN_FLAP)
     env.step(int(2.0 / env.timestep))
     span = info.dof_upper - info.dof_lower
     drift = np.abs(env.object_dof() - info.dof_initial) / span

@@ -13,14 +13,16 @@ switched off and each movable joint's drive realises the dynamics instead:
 * ``bistable`` parts (toggles): a spring towards the nearer end of the range, preloaded so
   that it presses the part onto that end with ``snap``; past the centre the target flips
   to the other end and the part snaps over, as an over-centre toggle mechanism does.
-* ``counterbalanced`` parts (vertical sashes on balances): the link ignores gravity, the
-  balances' job; friction as above.
+* ``counterbalanced`` parts (vertical sashes on balances, lids on gas struts, and flaps: doors
+  hinged on a horizontal axis, :func:`is_flap`): the link ignores gravity, the balances' job;
+  friction as above.
 
 Gravity acts on every other link: a lid falls shut below its balance point and open past
 it wherever its weight's torque beats the hinge friction.
 """
 from __future__ import annotations
 
+import dataclasses
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,11 +30,17 @@ from pathlib import Path
 import numpy as np
 import sapien
 
-from .physics_table import BISTABLE, COUNTERBALANCED, JointDynamics, behaviour, category_dynamics
+from .physics_table import BISTABLE, COUNTERBALANCED, SEMANTIC_ALIASES, JointDynamics, behaviour, category_dynamics
 
 V_CREEP = 1e-4  # m/s or rad/s: the fastest a joint drifts under a load just below its friction
 MIN_FRICTION = 1e-3  # N or N m: the drive gain's floor, so a frictionless joint is still damped
 LIMIT_TOLERANCE = 0.02  # relative change of a friction clamp worth passing on to PhysX
+# A door whose hinge axis lies within this of horizontal is a flap. Flaps are hung on fittings
+# that carry their weight: lift-up flaps on gas struts or lift mechanisms, drop-down flaps on
+# friction or soft-down stays, oven and dishwasher doors on hinge springs; each holds the flap
+# at any angle, as the counterbalanced behaviour does. (A box lid is a lid, not a door: plain
+# hinges, it falls shut below its balance point.)
+FLAP_MAX_TILT_DEG = 30.0
 
 
 @dataclass
@@ -107,19 +115,44 @@ def joint_dynamics(urdf: Path, joints: list, category: str, semantics: dict[str,
     """Dynamics of each movable joint: friction and damping from the URDF's ``<dynamics>`` where
     it gives a friction above zero (placeholders of 0 count as missing), else the category
     table's (:func:`.physics_table.category_dynamics`, keyed by the part's semantics.txt label);
-    the behaviour (bistable, counterbalanced) always from the table."""
+    the behaviour (bistable, counterbalanced) from the table, counterbalanced for a flap."""
     given = {}
     for j in ET.parse(urdf).getroot().iter("joint"):
         dyn = j.find("dynamics")
         if dyn is not None and float(dyn.get("friction", 0.0)) > 0.0:
             given[j.get("name")] = (float(dyn.get("friction")), float(dyn.get("damping", 0.0)))
     out = []
+    axes = _axes_as_modelled(joints[0].child_link.articulation) if joints else {}
     for joint in joints:
         label = semantics.get(joint.child_link.name, "")
         kind, snap = behaviour(category, label)
+        if is_flap(axes[joint.name], joint.type, label):
+            kind = COUNTERBALANCED
         if joint.name in given:
             friction, damping = given[joint.name]
             out.append(JointDynamics(friction, damping, kind, snap, "URDF <dynamics>"))
         else:
-            out.append(category_dynamics(category, label))
+            out.append(dataclasses.replace(category_dynamics(category, label), behaviour=kind))
     return out
+
+
+def is_flap(axis: np.ndarray, joint_type: str, semantic: str) -> bool:
+    """A door (by its semantics.txt label) on a hinge whose ``axis`` (object frame, z up) lies
+    within FLAP_MAX_TILT_DEG of horizontal."""
+    if SEMANTIC_ALIASES.get(semantic, semantic) != "door" or not joint_type.startswith("revolute"):
+        return False
+    return abs(float(axis[2])) < np.sin(np.deg2rad(FLAP_MAX_TILT_DEG))
+
+
+def _axes_as_modelled(articulation: sapien.physx.PhysxArticulation) -> dict[str, np.ndarray]:
+    """Each joint's axis in the root's frame at q = 0, composed along the tree from the joints'
+    poses in their parent and child links (link poses are not computed before the first step)."""
+    link_pose = {articulation.root.entity.name: sapien.Pose()}
+    axes = {}
+    for joint in articulation.joints:  # a parent link's joint comes before its children's
+        if joint.parent_link is None:
+            continue
+        in_world = link_pose[joint.parent_link.entity.name] * joint.pose_in_parent
+        link_pose[joint.child_link.entity.name] = in_world * joint.pose_in_child.inv()
+        axes[joint.name] = in_world.to_transformation_matrix()[:3, 0]
+    return axes

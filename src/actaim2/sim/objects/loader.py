@@ -19,7 +19,7 @@ stay unlimited in physics; their reported range is :data:`.partnet.CONTINUOUS_RA
 Placement: the object, at rest (every joint at 0, clipped into its limits: the pose it was
 modelled in, closed), is turned by ``yaw`` and moved so that its bounding box's front face is
 ``front_distance`` in front of the robot base (+x of ``world``), centred at ``lateral`` (y)
-and standing on the floor.
+and standing on the floor (or ``base_height`` above it: :mod:`.sizing`).
 """
 from __future__ import annotations
 
@@ -72,6 +72,7 @@ class LoadedObject:
     handles: list[Handle]
     scale: float = 1.0
     front_distance: float = DEFAULT_FRONT_DISTANCE  # the recommended one (meta.json or sizing), before jitter
+    base_height: float = 0.0  # m its bottom stands above the floor (sizing: parts that swing below it)
     hulls: int = 0  # convex collision shapes
     dynamics: ObjectDynamics | None = None  # joint friction and springs: step() before every physics step
 
@@ -129,9 +130,10 @@ def load_object(
     folder, urdf = info.folder, info.urdf
     if info.generated:
         scale, recommended = (1.0 if scale is None else float(scale)), recommended_front_distance(folder)
+        base_height = 0.0
     else:
         fit = fit_object(info, scale)
-        scale, recommended = fit.scale, fit.front_distance
+        scale, recommended, base_height = fit.scale, fit.front_distance, fit.lift
     loader = scene.create_urdf_loader()
     loader.fix_root_link = True
     loader.scale = scale
@@ -149,7 +151,7 @@ def load_object(
     limits[~np.isfinite(limits).all(axis=1)] = CONTINUOUS_RANGE
     n_hulls = sum(len(link.collision_shapes) for link in articulation.links) if n_hulls is None else n_hulls
     obj = LoadedObject(folder, info.object_id, info.category, articulation, joints, limits[:, 0].copy(),
-                       limits[:, 1].copy(), read_handles(folder), scale, recommended, n_hulls)
+                       limits[:, 1].copy(), read_handles(folder), scale, recommended, base_height, n_hulls)
     obj.dynamics = ObjectDynamics(articulation, joints, joint_dynamics(urdf, joints, obj.category, info.semantics))
     place(obj, recommended if front_distance is None else front_distance, lateral, yaw)
     return obj
@@ -207,7 +209,7 @@ def place(obj: LoadedObject, front_distance: float, lateral: float = 0.0, yaw: f
     obj.set_qpos(np.clip(0.0, obj.lower, obj.upper))
     lo, hi = aabb(art)
     anchor_obj = np.array([lo[0], (lo[1] + hi[1]) / 2, lo[2]])
-    anchor_world = np.array([front_distance, lateral, 0.0])
+    anchor_world = np.array([front_distance, lateral, obj.base_height])
     c, s = np.cos(yaw), np.sin(yaw)
     R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     T = np.eye(4)

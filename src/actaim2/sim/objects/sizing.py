@@ -11,7 +11,10 @@ The rule here, for a folder not written by the generator (those are built at rea
 2. **Front distance.** Its closed front stands ``DEFAULT_FRONT_DISTANCE`` before the robot
    base, farther when its parts, all half-open (the default reset), would reach closer than
    ``HOME_CLEARANCE`` to the base: the generated objects' rule (:mod:`.parts`).
-3. **Workspace fit.** Every movable link (handles are part of their link), swept over its
+3. **Floor.** The object stands on the floor, raised (as on a plinth) where a part swept over
+   its range would go below it: a door hinged at the bottom edge swings its lower edge under
+   the hinge, and the floor would stop it (PhysX then pushes it through its limits).
+4. **Workspace fit.** Every movable link (handles are part of their link), swept over its
    joint's whole range one joint at a time, must stay inside the workspace cube shrunk by
    :data:`WORKSPACE_MARGIN` (room for the reset's placement jitter); if it does not, the scale
    shrinks (bisection) until it does. A scale given by the caller is kept as it is.
@@ -73,6 +76,7 @@ class Fit:
     front_distance: float
     category_scale: float  # the scale of step 1 alone
     note: str
+    lift: float = 0.0  # m the object's bottom stands above the floor (step 3)
 
 
 def category_size(category: str) -> float:
@@ -106,21 +110,25 @@ def _fit(info: ObjectFolder, scale: float | None) -> Fit:
     low_bound = WORKSPACE_CENTER - WORKSPACE_HALF_EXTENT + WORKSPACE_MARGIN
     high_bound = WORKSPACE_CENTER + WORKSPACE_HALF_EXTENT - WORKSPACE_MARGIN
 
+    def lift(s: float) -> float:
+        return max(0.0, -s * float(swept[:, 2].min(initial=0.0)))
+
     def inside(s: float) -> bool:
-        world = s * swept + np.array([front(s), 0.0, 0.0])
+        world = s * swept + np.array([front(s), 0.0, lift(s)])
         return bool(np.all(world >= low_bound) and np.all(world <= high_bound))
 
+    def fit(s: float, note: str) -> Fit:
+        return Fit(float(s), front(s), category_scale, note, lift(s))
+
     if scale is not None:
-        note = "scale given" + ("" if inside(scale) else "; some moving part leaves the workspace cube")
-        return Fit(float(scale), front(scale), category_scale, note)
+        return fit(scale, "scale given" + ("" if inside(scale) else "; some moving part leaves the workspace cube"))
     if inside(category_scale):
-        return Fit(category_scale, front(category_scale), category_scale, f"{info.category} size {category_size(info.category):.2f} m")
+        return fit(category_scale, f"{info.category} size {category_size(info.category):.2f} m")
     low, high = 0.0, category_scale
     for _ in range(30):
         mid = 0.5 * (low + high)
         low, high = (mid, high) if inside(mid) else (low, mid)
-    return Fit(low, front(low), category_scale,
-               f"shrunk from {category_scale:.3f} to {low:.3f}: a moving part left the workspace cube")
+    return fit(low, f"shrunk from {category_scale:.3f} to {low:.3f}: a moving part left the workspace cube")
 
 
 _FITS: dict[tuple, Fit] = {}
