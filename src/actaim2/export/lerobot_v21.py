@@ -114,6 +114,60 @@ def _jsonl(path: Path, rows: list[dict]) -> None:
     path.write_text("".join(json.dumps(r) + "\n" for r in rows))
 
 
+@dataclass
+class EpisodeColumns:
+    """One trajectory as LeRobot frames: the data columns, their statistics, the task."""
+
+    columns: dict[str, list]
+    stats: dict[str, dict]
+    task: str
+    length: int
+    joint_names: list[str]
+    cameras: list[str]
+    features: dict
+
+
+def episode_columns(reader: DatasetReader, entry: dict, episode_index: int, first_index: int,
+                    tasks: dict[str, int]) -> EpisodeColumns:
+    """The frames of trajectory ``entry`` (one per keyframe) as episode ``episode_index`` whose
+    first frame has the global index ``first_index``; ``tasks`` (label -> task index) gains its
+    label."""
+    meta, obs = reader.observations(entry, list(KEYFRAME_OBSERVATIONS))
+    cameras = meta["cameras"]
+    names = list(meta["robot_joints"][KEYFRAME_OBSERVATIONS[0]])
+    features = features_of(cameras, obs[KEYFRAME_OBSERVATIONS[0]][cameras[0]].rgb.shape[:2], names)
+    label = entry.get("mode_label") or ""
+    task_index = tasks.setdefault(label, len(tasks))
+    n = len(KEYFRAME_OBSERVATIONS)
+    actions = np.stack([keypose_tensor(Keypose.from_json(k)).numpy() for k in meta["keyposes"]])
+    states = np.array([[meta["robot_joints"][o][j] for j in names] for o in KEYFRAME_OBSERVATIONS],
+                      np.float32)
+    columns, stats = {}, {}
+    for c in cameras:
+        images = np.stack([obs[o][c].rgb for o in KEYFRAME_OBSERVATIONS])
+        columns[f"observation.images.{c}"] = [{"bytes": png_bytes(im), "path": None}
+                                               for im in images]
+        stats[f"observation.images.{c}"] = _image_stats(images)
+    index_values = {"timestamp": np.arange(n, dtype=np.float32) / FPS, "frame_index": np.arange(n),
+                    "episode_index": np.full(n, episode_index),
+                    "index": first_index + np.arange(n),
+                    "task_index": np.full(n, task_index)}
+    columns.update({"observation.state": states.tolist(), "action": actions.tolist(),
+                    **{k: v.tolist() for k, v in index_values.items()}})
+    stats.update({"observation.state": _stats(states), "action": _stats(actions),
+                  **{k: _stats(v[:, None]) for k, v in index_values.items()}})
+    return EpisodeColumns(columns, stats, label, n, names, cameras, features)
+
+
+def check_same_robot(entry: dict, episode: EpisodeColumns, joint_names: list[str],
+                     features: dict) -> None:
+    """A LeRobotFormatError unless ``episode`` has the first episode's joints and cameras."""
+    if episode.joint_names != joint_names or set(episode.features) != set(features):
+        raise LeRobotFormatError(f"trajectory {entry['id']} has joints {episode.joint_names} / "
+                                 f"cameras {episode.cameras}, unlike the first one: one LeRobot "
+                                 f"dataset holds one robot and one camera set")
+
+
 def export_lerobot(dataset: str | Path, out: str | Path, successful_only: bool = False) -> dict:
     """Write the trajectories of ``dataset`` as a LeRobot v2.1 dataset at ``out``; returns info.json."""
     _, pq = _pa()
@@ -130,34 +184,12 @@ def export_lerobot(dataset: str | Path, out: str | Path, successful_only: bool =
     features = schema = joint_names = None
     frames_total = 0
     for episode_index, entry in enumerate(entries):
-        meta, obs = reader.observations(entry, list(KEYFRAME_OBSERVATIONS))
-        cameras = meta["cameras"]
-        names = list(meta["robot_joints"][KEYFRAME_OBSERVATIONS[0]])
+        episode = episode_columns(reader, entry, episode_index, frames_total, tasks)
         if features is None:
-            joint_names = names
-            features = features_of(cameras, obs[KEYFRAME_OBSERVATIONS[0]][cameras[0]].rgb.shape[:2], joint_names)
+            joint_names, features = episode.joint_names, episode.features
             schema = arrow_schema(features)
-        elif names != joint_names or any(f"observation.images.{c}" not in features for c in cameras):
-            raise LeRobotFormatError(f"trajectory {entry['id']} has joints {names} / cameras {cameras}, "
-                                     f"unlike the first one: one LeRobot dataset holds one robot and one camera set")
-        label = entry.get("mode_label") or ""
-        task_index = tasks.setdefault(label, len(tasks))
-        n = len(KEYFRAME_OBSERVATIONS)
-        actions = np.stack([keypose_tensor(Keypose.from_json(k)).numpy() for k in meta["keyposes"]])
-        states = np.array([[meta["robot_joints"][o][j] for j in joint_names] for o in KEYFRAME_OBSERVATIONS], np.float32)
-        columns = {}
-        stats = {}
-        for c in cameras:
-            images = np.stack([obs[o][c].rgb for o in KEYFRAME_OBSERVATIONS])
-            columns[f"observation.images.{c}"] = [{"bytes": png_bytes(im), "path": None} for im in images]
-            stats[f"observation.images.{c}"] = _image_stats(images)
-        index_values = {"timestamp": np.arange(n, dtype=np.float32) / FPS, "frame_index": np.arange(n),
-                        "episode_index": np.full(n, episode_index), "index": frames_total + np.arange(n),
-                        "task_index": np.full(n, task_index)}
-        columns.update({"observation.state": states.tolist(), "action": actions.tolist(),
-                        **{k: v.tolist() for k, v in index_values.items()}})
-        stats.update({"observation.state": _stats(states), "action": _stats(actions),
-                      **{k: _stats(v[:, None]) for k, v in index_values.items()}})
+        check_same_robot(entry, episode, joint_names, features)
+        columns, stats, label, n = episode.columns, episode.stats, episode.task, episode.length
         path = out / DATA_PATH.format(episode_chunk=episode_index // CHUNK_SIZE, episode_index=episode_index)
         path.parent.mkdir(parents=True, exist_ok=True)
         pq.write_table(_pa()[0].Table.from_pydict(columns, schema=schema), path)
@@ -195,6 +227,19 @@ def _read_jsonl(path: Path) -> list[dict]:
     return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
 
 
+def decode_columns(table, features: dict) -> dict[str, np.ndarray]:
+    """Feature -> (frames, ...) array of a data table; images decoded to (frames, H, W, 3)."""
+    columns = {}
+    for name, spec in features.items():
+        values = table.column(name).to_pylist()
+        if spec["dtype"] == "image":
+            columns[name] = np.stack([np.asarray(Image.open(io.BytesIO(v["bytes"])).convert("RGB"))
+                                      for v in values])
+        else:
+            columns[name] = np.asarray(values, dtype=spec["dtype"])
+    return columns
+
+
 def read_lerobot(root: str | Path) -> tuple[dict, list[LeRobotEpisode]]:
     """(info, episodes) of a LeRobot v2.1 dataset, every data file checked against info.json."""
     _, pq = _pa()
@@ -216,13 +261,7 @@ def read_lerobot(root: str | Path) -> tuple[dict, list[LeRobotEpisode]]:
         table = pq.read_table(path)
         if not table.schema.equals(expected) or table.schema.metadata != expected.metadata:
             raise LeRobotFormatError(f"{path}: schema {table.schema} is not the one info.json's features give")
-        columns = {}
-        for name, spec in features.items():
-            values = table.column(name).to_pylist()
-            if spec["dtype"] == "image":
-                columns[name] = np.stack([np.asarray(Image.open(io.BytesIO(v["bytes"])).convert("RGB")) for v in values])
-            else:
-                columns[name] = np.asarray(values, dtype=spec["dtype"])
+        columns = decode_columns(table, features)
         if len(table) != row["length"] or not np.array_equal(columns["episode_index"], np.full(len(table), i)) \
                 or not np.array_equal(columns["index"], next_index + np.arange(len(table))):
             raise LeRobotFormatError(f"{path}: {len(table)} frames, episode or global index columns disagree with episodes.jsonl")
