@@ -97,10 +97,11 @@ def test_episodes_share_files_and_a_full_file_starts_the_next(converted, tmp_pat
     assert [int(e.columns["index"][0]) for e in episodes] == [0, 4, 8, 12]
 
 
-def test_from_bags_exports_the_bags_as_the_converted_dataset(converted, exports, tmp_path):
+def test_from_bags_exports_the_bags_as_the_converted_dataset(converted, exports, tmp_path, capsys):
     out = tmp_path / "from_bags"
     assert cli.main(["export-lerobot", str(converted.recording.bag), "--from-bags", "--encoder",
                      str(converted.recording.encoder), "--out", str(out), "--format", "v3"]) == 0
+    assert "bag2dataset: 1/1 bag (" in capsys.readouterr().err  # the conversion's progress line
     _, from_bags = read_lerobot_v3(out)
     _, from_dataset = read_lerobot_v3(exports / "v3")
     assert [e.task for e in from_bags] == [e.task for e in from_dataset]
