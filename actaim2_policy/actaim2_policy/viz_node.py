@@ -231,10 +231,8 @@ class VizNode(Node):
         self._log_keyposes()
 
     def _on_sample_mode_event(self, msg: Any) -> None:
-        if msg.info.event_type != ServiceEventInfo.RESPONSE_SENT or not msg.response:
-            return
-        response = msg.response[0]
-        if not response.success:
+        response = _answer(msg)
+        if response is None:
             return
         requested = msg.request[0].cluster if msg.request else -1
         with self._lock:
@@ -243,10 +241,8 @@ class VizNode(Node):
         self._log_mode()
 
     def _on_predict_event(self, msg: Any) -> None:
-        if msg.info.event_type != ServiceEventInfo.RESPONSE_SENT or not msg.response:
-            return
-        response = msg.response[0]
-        if not response.success:
+        response = _answer(msg)
+        if response is None:
             return
         with self._lock:
             self._keyposes[live.PREDICTED] = keypose_data(response.keypose)
@@ -307,6 +303,13 @@ class VizNode(Node):
             channel = self._heat_chs.get(name)
             if channel is not None and channel.has_sinks():
                 channel.log(live.rgb_image(image, stamp), log_time=stamp)
+
+
+def _answer(event: Any) -> Any:
+    """The successful response a service event carries (the server's RESPONSE_SENT), else None."""
+    if event.info.event_type != ServiceEventInfo.RESPONSE_SENT or not event.response:
+        return None
+    return event.response[0] if event.response[0].success else None
 
 
 def _views_array(msg: OrthoViews) -> np.ndarray:

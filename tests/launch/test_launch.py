@@ -58,7 +58,7 @@ def parse_ros2_run(cmd: list[str]) -> NodeSpec:
 @pytest.mark.parametrize("name", sorted(GRAPHS))
 def test_launch_xml_nodes_parameters_and_remappings_equal_what_actaim2_launch_starts(name):
     from_xml = parse_launch_xml((REPO / "actaim2_policy" / "launch" / f"{name}.launch.xml").read_text())
-    every_argument = dict.fromkeys(GRAPHS[name].arguments, True)  # the XML lists the optional nodes too
+    every_argument = dict.fromkeys(GRAPHS[name].arguments, True)  # the XML lists optional nodes
     started = [parse_ros2_run(cmd) for cmd in command_lines(GRAPHS[name], every_argument)]
     assert len(from_xml) == len(started) > 0
     for xml_node, run_node in zip(from_xml, started):
@@ -73,8 +73,8 @@ def test_launch_xml_nodes_parameters_and_remappings_equal_what_actaim2_launch_st
 @pytest.mark.parametrize("name", sorted(GRAPHS))
 def test_viz_node_starts_only_with_viz_true_and_unknown_arguments_are_refused(name, capsys):
     graph = GRAPHS[name]
-    xml_conditions = {n.executable: n.condition for n in
-                      parse_launch_xml((REPO / "actaim2_policy" / "launch" / f"{name}.launch.xml").read_text())}
+    xml = (REPO / "actaim2_policy" / "launch" / f"{name}.launch.xml").read_text()
+    xml_conditions = {n.executable: n.condition for n in parse_launch_xml(xml)}
     assert xml_conditions["viz_node"] == "viz" and graph.arguments == {"viz": False}
     assert "viz_node" not in {n.executable for n in graph.started({})}
     assert "viz_node" in {n.executable for n in graph.started({"viz": True})}

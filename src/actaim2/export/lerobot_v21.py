@@ -31,6 +31,7 @@ import io
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 from PIL import Image
@@ -54,7 +55,8 @@ class LeRobotFormatError(ValueError):
     """Files that are not a LeRobot v2.1 dataset as this module writes it."""
 
 
-def _pa():
+def arrow_modules():
+    """pyarrow and pyarrow.parquet (imported on use: the CLI's parser stays cheap)."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -75,7 +77,7 @@ def features_of(cameras: list[str], image_shape: tuple[int, int], joint_names: l
 def _hf_feature(spec: dict) -> tuple[dict, object]:
     """(Hugging Face ``datasets`` 3.x feature dict, arrow type) of one LeRobot feature, as
     ``get_hf_features_from_features`` maps them: image -> Image, (1,) -> Value, (n,) -> Sequence."""
-    pa, _ = _pa()
+    pa, _ = arrow_modules()
     if spec["dtype"] == "image":
         return {"mode": None, "decode": True, "id": None, "_type": "Image"}, pa.struct({"bytes": pa.binary(), "path": pa.string()})
     arrow = {"float32": pa.float32(), "int64": pa.int64()}[spec["dtype"]]
@@ -87,7 +89,7 @@ def _hf_feature(spec: dict) -> tuple[dict, object]:
 
 def arrow_schema(features: dict):
     """The parquet schema of a data file, with the ``huggingface`` metadata ``datasets`` reads features from."""
-    pa, _ = _pa()
+    pa, _ = arrow_modules()
     hf, fields = {}, []
     for name, spec in features.items():
         hf[name], arrow = _hf_feature(spec)
@@ -168,31 +170,52 @@ def check_same_robot(entry: dict, episode: EpisodeColumns, joint_names: list[str
                                  f"dataset holds one robot and one camera set")
 
 
-def export_lerobot(dataset: str | Path, out: str | Path, successful_only: bool = False) -> dict:
-    """Write the trajectories of ``dataset`` as a LeRobot v2.1 dataset at ``out``; returns info.json."""
-    _, pq = _pa()
+def export_entries(dataset: str | Path, out: Path,
+                   successful_only: bool) -> tuple[DatasetReader, list[dict]]:
+    """The reader of ``dataset`` and the trajectories to export into the new folder ``out``."""
     reader = DatasetReader(dataset)
-    out = Path(out)
     if (out / "meta" / "info.json").exists():
         raise FileExistsError(f"{out} already holds a LeRobot dataset: export into a new folder")
     entries = [e for e in reader.entries if not successful_only or e.get("label")]
     if not entries:
-        raise LeRobotFormatError(f"{dataset} has no trajectory to export" + (" labelled successful" if successful_only else ""))
-    (out / "meta").mkdir(parents=True, exist_ok=True)
-    tasks: dict[str, int] = {}
-    episodes, episode_stats = [], []
-    features = schema = joint_names = None
-    frames_total = 0
+        raise LeRobotFormatError(f"{dataset} has no trajectory to export"
+                                 + (" labelled successful" if successful_only else ""))
+    return reader, entries
+
+
+def episode_tables(reader: DatasetReader, entries: list[dict],
+                   tasks: dict[str, int]) -> Iterator[tuple[dict, EpisodeColumns, object]]:
+    """(entry, its frames, its arrow table) for each trajectory, as consecutive episodes of one
+    robot and camera set (a LeRobotFormatError otherwise); ``tasks`` gains their labels."""
+    pa, _ = arrow_modules()
+    schema = joint_names = features = None
+    frames = 0
     for episode_index, entry in enumerate(entries):
-        episode = episode_columns(reader, entry, episode_index, frames_total, tasks)
+        episode = episode_columns(reader, entry, episode_index, frames, tasks)
         if features is None:
             joint_names, features = episode.joint_names, episode.features
             schema = arrow_schema(features)
         check_same_robot(entry, episode, joint_names, features)
-        columns, stats, label, n = episode.columns, episode.stats, episode.task, episode.length
+        frames += episode.length
+        yield entry, episode, pa.Table.from_pydict(episode.columns, schema=schema)
+
+
+def export_lerobot(dataset: str | Path, out: str | Path, successful_only: bool = False) -> dict:
+    """Write the trajectories of ``dataset`` as a LeRobot v2.1 dataset at ``out``; returns
+    info.json."""
+    _, pq = arrow_modules()
+    out = Path(out)
+    reader, entries = export_entries(dataset, out, successful_only)
+    (out / "meta").mkdir(parents=True, exist_ok=True)
+    tasks: dict[str, int] = {}
+    episodes, episode_stats = [], []
+    frames_total = 0
+    episodes_read = episode_tables(reader, entries, tasks)
+    for episode_index, (entry, episode, table) in enumerate(episodes_read):
+        features, stats, label, n = episode.features, episode.stats, episode.task, episode.length
         path = out / DATA_PATH.format(episode_chunk=episode_index // CHUNK_SIZE, episode_index=episode_index)
         path.parent.mkdir(parents=True, exist_ok=True)
-        pq.write_table(_pa()[0].Table.from_pydict(columns, schema=schema), path)
+        pq.write_table(table, path)
         episodes.append({"episode_index": episode_index, "tasks": [label], "length": n,
                          "actaim2_id": entry["id"], "success": entry.get("label")})
         episode_stats.append({"episode_index": episode_index, "stats": stats})
@@ -240,16 +263,30 @@ def decode_columns(table, features: dict) -> dict[str, np.ndarray]:
     return columns
 
 
-def read_lerobot(root: str | Path) -> tuple[dict, list[LeRobotEpisode]]:
-    """(info, episodes) of a LeRobot v2.1 dataset, every data file checked against info.json."""
-    _, pq = _pa()
-    root = Path(root)
+def read_info(root: Path, version: str) -> dict:
+    """meta/info.json of a LeRobot dataset of format ``version`` (else a LeRobotFormatError)."""
     try:
         info = json.loads((root / "meta" / "info.json").read_text())
     except (OSError, json.JSONDecodeError) as exc:
         raise LeRobotFormatError(f"{root}/meta/info.json cannot be read: {exc}") from exc
-    if info.get("codebase_version") != CODEBASE_VERSION:
-        raise LeRobotFormatError(f"{root} is LeRobot format {info.get('codebase_version')}, this reader reads {CODEBASE_VERSION}")
+    if info.get("codebase_version") != version:
+        raise LeRobotFormatError(f"{root} is LeRobot format {info.get('codebase_version')}, "
+                                 f"this reader reads {version}")
+    return info
+
+
+def check_totals(root: Path, info: dict, episodes: list[LeRobotEpisode], frames: int) -> None:
+    """A LeRobotFormatError unless info.json counts the episodes and frames that were read."""
+    if frames != info["total_frames"] or len(episodes) != info["total_episodes"]:
+        raise LeRobotFormatError(f"{root}: {len(episodes)} episodes / {frames} frames, info.json "
+                                 f"says {info['total_episodes']} / {info['total_frames']}")
+
+
+def read_lerobot(root: str | Path) -> tuple[dict, list[LeRobotEpisode]]:
+    """(info, episodes) of a LeRobot v2.1 dataset, every data file checked against info.json."""
+    _, pq = arrow_modules()
+    root = Path(root)
+    info = read_info(root, CODEBASE_VERSION)
     tasks = {t["task_index"]: t["task"] for t in _read_jsonl(root / "meta" / "tasks.jsonl")}
     rows = sorted(_read_jsonl(root / "meta" / "episodes.jsonl"), key=lambda e: e["episode_index"])
     features = info["features"]
@@ -270,7 +307,5 @@ def read_lerobot(root: str | Path) -> tuple[dict, list[LeRobotEpisode]]:
         if len(task_indices) != 1 or tasks.get(task_indices.pop()) not in row["tasks"]:
             raise LeRobotFormatError(f"{path}: task_index column does not name the episode's task {row['tasks']}")
         episodes.append(LeRobotEpisode(i, row["tasks"][0], row, columns))
-    if next_index != info["total_frames"] or len(episodes) != info["total_episodes"]:
-        raise LeRobotFormatError(f"{root}: {len(episodes)} episodes / {next_index} frames, info.json says "
-                                 f"{info['total_episodes']} / {info['total_frames']}")
+    check_totals(root, info, episodes, next_index)
     return info, episodes

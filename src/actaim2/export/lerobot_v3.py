@@ -27,15 +27,17 @@ from pathlib import Path
 
 import numpy as np
 
-from actaim2.data.storage import DatasetReader
 from actaim2.export.lerobot_v21 import (
     FPS,
     LeRobotEpisode,
     LeRobotFormatError,
+    arrow_modules,
     arrow_schema,
-    check_same_robot,
+    check_totals,
     decode_columns,
-    episode_columns,
+    episode_tables,
+    export_entries,
+    read_info,
 )
 
 CODEBASE_VERSION = "v3.0"
@@ -51,30 +53,17 @@ EPISODE_COLUMNS = ("episode_index", "tasks", "length", "data/chunk_index", "data
                    "meta/episodes/file_index")
 
 
-def _pa():
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
-    return pa, pq
-
-
 def export_lerobot_v3(dataset: str | Path, out: str | Path, successful_only: bool = False,
                       file_size_mb: float = DATA_FILE_SIZE_IN_MB) -> dict:
     """Write the trajectories of ``dataset`` as a LeRobot v3.0 dataset at ``out`` (a data file
     closed past ``file_size_mb``); returns info.json."""
-    pa, pq = _pa()
-    reader = DatasetReader(dataset)
+    pa, pq = arrow_modules()
     out = Path(out)
-    if (out / "meta" / "info.json").exists():
-        raise FileExistsError(f"{out} already holds a LeRobot dataset: export into a new folder")
-    entries = [e for e in reader.entries if not successful_only or e.get("label")]
-    if not entries:
-        raise LeRobotFormatError(f"{dataset} has no trajectory to export"
-                                 + (" labelled successful" if successful_only else ""))
+    reader, entries = export_entries(dataset, out, successful_only)
     tasks: dict[str, int] = {}
     rows: list[dict] = []
     all_stats: list[dict] = []
-    features = schema = joint_names = None
+    features: dict = {}
     pending: list = []  # tables of the data file being filled
     pending_bytes, file_number, frames_total = 0, 0, 0
 
@@ -87,13 +76,9 @@ def export_lerobot_v3(dataset: str | Path, out: str | Path, successful_only: boo
             pq.write_table(pa.concat_tables(pending), path)
             pending, pending_bytes, file_number = [], 0, file_number + 1
 
-    for episode_index, entry in enumerate(entries):
-        episode = episode_columns(reader, entry, episode_index, frames_total, tasks)
-        if features is None:
-            joint_names, features = episode.joint_names, episode.features
-            schema = arrow_schema(features)
-        check_same_robot(entry, episode, joint_names, features)
-        table = pa.Table.from_pydict(episode.columns, schema=schema)
+    episodes = episode_tables(reader, entries, tasks)
+    for episode_index, (entry, episode, table) in enumerate(episodes):
+        features = episode.features
         if pending and pending_bytes + table.nbytes > file_size_mb * 2**20:
             flush()
         pending.append(table)
@@ -136,7 +121,7 @@ def export_lerobot_v3(dataset: str | Path, out: str | Path, successful_only: boo
 def _tasks_table(tasks: dict[str, int]):
     """meta/tasks.parquet as pandas writes a DataFrame with the task texts as its index: LeRobot
     reads it with ``pd.read_parquet`` and looks tasks up by that index."""
-    pa, _ = _pa()
+    pa, _ = arrow_modules()
     pandas_meta = {
         "index_columns": ["task"],
         "column_indexes": [{"name": None, "field_name": None, "pandas_type": "unicode",
@@ -175,15 +160,9 @@ def _aggregate(episode_stats: list[dict]) -> dict:
 
 def read_lerobot_v3(root: str | Path) -> tuple[dict, list[LeRobotEpisode]]:
     """(info, episodes) of a LeRobot v3.0 dataset, every file checked against the metadata."""
-    _, pq = _pa()
+    _, pq = arrow_modules()
     root = Path(root)
-    try:
-        info = json.loads((root / "meta" / "info.json").read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise LeRobotFormatError(f"{root}/meta/info.json cannot be read: {exc}") from exc
-    if info.get("codebase_version") != CODEBASE_VERSION:
-        raise LeRobotFormatError(f"{root} is LeRobot format {info.get('codebase_version')}, "
-                                 f"this reader reads {CODEBASE_VERSION}")
+    info = read_info(root, CODEBASE_VERSION)
     tasks_table = _read_parquet(root / TASKS_PATH, pq)
     if json.loads(tasks_table.schema.metadata[b"pandas"])["index_columns"] != ["task"]:
         raise LeRobotFormatError(f"{root / TASKS_PATH}: the task texts are not its index")
@@ -230,10 +209,7 @@ def read_lerobot_v3(root: str | Path) -> tuple[dict, list[LeRobotEpisode]]:
             raise LeRobotFormatError(f"episode {i}: task_index does not name its task "
                                      f"{row['tasks']}")
         episodes.append(LeRobotEpisode(i, row["tasks"][0], row, columns))
-    if next_index != info["total_frames"] or len(episodes) != info["total_episodes"]:
-        raise LeRobotFormatError(f"{root}: {len(episodes)} episodes / {next_index} frames, "
-                                 f"info.json says {info['total_episodes']} / "
-                                 f"{info['total_frames']}")
+    check_totals(root, info, episodes, next_index)
     return info, episodes
 
 

@@ -1,7 +1,7 @@
 """`actaim2 launch GRAPH`: start a node graph as separate processes (no `launch` package here).
 
     actaim2 launch sim_panda_ring5                 # every node of the graph, logs in runs/launch/<graph>/
-    actaim2 launch sim_panda_ring5 viz:=true       # with the graph's optional nodes (viz_node: Foxglove)
+    actaim2 launch sim_panda_ring5 viz:=true       # with viz_node (the live Foxglove view)
     actaim2 launch sim_panda_ring5 --dry-run       # print the command lines only
     actaim2 launch --write-xml actaim2_policy/launch   # regenerate the ROS XML launch files
 
@@ -21,7 +21,8 @@ import sys
 import time
 from pathlib import Path
 
-from actaim2.launch.graph import GRAPH_ENVIRONMENT, Graph, GraphError, NodeSpec, load_graphs, parse_arguments, to_launch_xml
+from actaim2.launch.graph import (GRAPH_ENVIRONMENT, Graph, GraphError, NodeSpec, load_graphs,
+                                  parse_arguments, to_launch_xml)
 from actaim2.ros_main import STACK_DUMP_SIGNAL
 
 STOP_TIMEOUT = 10.0  # s a node gets to exit after SIGINT before it is killed
@@ -81,7 +82,8 @@ def main(args: argparse.Namespace) -> int:
     if args.list or not args.graph:
         for graph in graphs.values():
             arguments = "".join(f" {k}:={str(v).lower()}" for k, v in graph.arguments.items())
-            print(f"{graph.name:20s} {graph.description}  [{', '.join(n.name for n in graph.nodes)}]{arguments}")
+            nodes = ", ".join(n.name for n in graph.nodes)
+            print(f"{graph.name:20s} {graph.description}  [{nodes}]{arguments}")
         return 0 if args.list else 2
     if args.graph not in graphs:
         print(f"actaim2 launch: unknown graph '{args.graph}'; graphs: {', '.join(graphs)}", file=sys.stderr)

@@ -119,7 +119,8 @@ def load_graphs(path: Path) -> dict[str, Graph]:
     for name, body in raw.items():
         nodes = []
         for k, entry in enumerate((body or {}).get("nodes", [])):
-            unknown = set(entry) - {"package", "executable", "name", "params_files", "parameters", "remappings", "if"}
+            unknown = set(entry) - {"package", "executable", "name", "params_files", "parameters",
+                                    "remappings", "if"}
             if unknown or not {"package", "executable"} <= set(entry):
                 raise GraphError(f"{path}: graph {name} node {k}: needs package and executable; unknown keys {sorted(unknown)}")
             nodes.append(NodeSpec(entry["package"], entry["executable"], entry.get("name", entry["executable"]),
@@ -128,11 +129,13 @@ def load_graphs(path: Path) -> dict[str, Graph]:
         arguments = {str(k): bool(v) for k, v in ((body or {}).get("arguments") or {}).items()}
         undeclared = sorted({n.condition for n in nodes if n.condition} - set(arguments))
         if undeclared:
-            raise GraphError(f"{path}: graph {name}: nodes depend on undeclared argument(s) {undeclared}")
+            raise GraphError(f"{path}: graph {name}: nodes depend on undeclared argument(s) "
+                             f"{undeclared}")
         names = [n.name for n in nodes]
         if len(set(names)) != len(names):
             raise GraphError(f"{path}: graph {name} has duplicate node names: {names}")
-        graphs[name] = Graph(name, str((body or {}).get("description", "")), tuple(nodes), arguments)
+        description = str((body or {}).get("description", ""))
+        graphs[name] = Graph(name, description, tuple(nodes), arguments)
     return graphs
 
 
@@ -173,6 +176,6 @@ def parse_launch_xml(text: str) -> list[NodeSpec]:
                 parameters[param.attrib["name"]] = param.attrib["value"]
         remaps = {r.attrib["from"]: r.attrib["to"] for r in node.iter("remap")}
         condition = node.attrib.get("if", "").removeprefix("$(var ").removesuffix(")")
-        nodes.append(NodeSpec(node.attrib["pkg"], node.attrib["exec"], node.attrib["name"], tuple(files), parameters, remaps,
-                              condition))
+        nodes.append(NodeSpec(node.attrib["pkg"], node.attrib["exec"], node.attrib["name"],
+                              tuple(files), parameters, remaps, condition))
     return nodes
