@@ -45,6 +45,7 @@ from actaim2.ros_params import declare_parameters
 from actaim2.viz import foxglove_live as live
 
 HOST = "127.0.0.1"  # the server never listens beyond this machine
+RETRY_PERIOD = 5.0  # s between two tries to serve on a port another process holds
 VIEWS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)  # as fusion_node's
 HEATMAPS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)  # as policy_node's
 KEYPOSE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)  # as control_node's
@@ -128,16 +129,29 @@ class VizNode(Node):
         self.create_timer(float(p["poll_period"]), self._reconcile)
         self.create_timer(1.0 / float(p["tf_rate"]), self._log_tf)
         self.create_timer(float(p["state_period"]), self._log_state)
+        self._port = port
+        self._server: foxglove.WebSocketServer | None = None
+        self._retry = self.create_timer(RETRY_PERIOD, self._start_server)
+        self._start_server()
+
+    def _start_server(self) -> None:
+        """Serve on 127.0.0.1:port; while the port is taken (another graph's viz_node), say so and
+        try again every RETRY_PERIOD: the graph it belongs to keeps running without a live view."""
         try:
-            self._server = foxglove.start_server(name="actaim2", host=HOST, port=port)
-        except Exception as exc:  # noqa: BLE001 - the SDK's own error type: one start-up line
-            raise OSError(f"cannot start the Foxglove server on {HOST}:{port}: {exc}") from exc
+            self._server = foxglove.start_server(name="actaim2", host=HOST, port=self._port)
+        except Exception as exc:  # noqa: BLE001 - the SDK's own error type
+            self.get_logger().error(f"cannot serve Foxglove on {HOST}:{self._port} ({exc}); "
+                                    f"trying again every {RETRY_PERIOD:.0f} s",
+                                    throttle_duration_sec=60.0)
+            return
+        self._retry.cancel()
         url = f"ws://{HOST}:{self._server.port}"
         self.get_logger().info(f"viz_node ready: Foxglove WebSocket {url} "
                                "(open docs/foxglove/actaim2_layout.json in Foxglove)")
 
     def destroy_node(self) -> None:
-        self._server.stop()
+        if self._server is not None:
+            self._server.stop()
         super().destroy_node()
 
     # -- subscriptions that follow the clients ----------------------------------------------

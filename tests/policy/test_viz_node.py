@@ -11,6 +11,7 @@ from __future__ import annotations
 import base64
 import json
 import re
+import socket
 import struct
 import threading
 import time
@@ -243,6 +244,28 @@ def test_a_foxglove_client_gets_every_channel_decoded(ros_node, graph):
         streamer.join()
     # The client left: viz_node lets go of the large topics again.
     assert wait_for(lambda: cloud_pub.get_subscription_count() == 0, 20.0), viz.output()
+
+
+def test_a_taken_port_leaves_the_node_up_until_it_is_free(tmp_path):
+    """Another graph's viz_node holds the port: this one says so and serves once it is free,
+    instead of exiting (which would stop the graph it was launched with)."""
+    holder = socket.socket()
+    holder.bind(("127.0.0.1", 0))
+    holder.listen()
+    port = holder.getsockname()[1]
+    viz = NodeProcess("actaim2_policy", "viz_node", {"port": port, "robot": ""}, [], tmp_path)
+    try:
+        assert wait_for(lambda: f"cannot serve Foxglove on 127.0.0.1:{port}" in viz.output(),
+                        60.0), viz.output()
+        assert viz.alive() and "viz_node ready" not in viz.output()
+        holder.close()
+        assert wait_for(lambda: f"ready: Foxglove WebSocket ws://127.0.0.1:{port}" in viz.output(),
+                        30.0), viz.output()
+        with connect(f"ws://127.0.0.1:{port}", subprotocols=SUBPROTOCOLS) as ws:
+            assert json.loads(ws.recv(timeout=10.0))["op"] == "serverInfo"
+    finally:
+        holder.close()
+        assert viz.stop() == 0, viz.output()
 
 
 def test_committed_layout_is_the_generated_one_and_names_served_channels():
