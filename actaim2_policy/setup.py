@@ -31,6 +31,7 @@ setup(
             "episode_runner = actaim2_policy.episode_runner:main",
             "policy_node = actaim2_policy.policy_node:main",
             "service_probe = actaim2_policy.service_probe:main",
+            "viz_node = actaim2_policy.viz_node:main",
         ],
     },
 )

@@ -13,6 +13,8 @@
 # Without a committed checkpoint the runner falls back to the heuristic grasp sampler
 # (keyposes:=sampler, the non-learned baseline) and the output says so.
 # Logs: runs/demo/sim_panda_ring5/<node>.log, runs/demo/episode_runner.log, runs/demo/episodes.jsonl.
+# Live view: viz_node serves the graph to Foxglove on ws://127.0.0.1:8765 (open the layout
+# docs/foxglove/actaim2_layout.json); ACTAIM2_VIZ=false leaves it out.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bash "$ROOT/scripts/setup.sh"
@@ -33,7 +35,8 @@ else
   echo "[demo] ######################################################################################"
 fi
 
-actaim2 launch sim_panda_ring5 --logs "$LOGS" >"$LOGS/launch.log" 2>&1 &
+viz="${ACTAIM2_VIZ:-true}"
+actaim2 launch sim_panda_ring5 "viz:=$viz" --logs "$LOGS" >"$LOGS/launch.log" 2>&1 &
 launch_pid=$!
 stop_graph() {  # actaim2 launch stops every node on SIGTERM (a background job here ignores SIGINT)
   kill -TERM "$launch_pid" 2>/dev/null || true
@@ -42,6 +45,7 @@ stop_graph() {  # actaim2 launch stops every node on SIGTERM (a background job h
 }
 trap stop_graph EXIT
 echo "[demo] started the graph sim_panda_ring5 (log: runs/demo/launch.log); the runner waits for its services"
+[ "$viz" = true ] && echo "[demo] live view: connect Foxglove to ws://127.0.0.1:8765, open docs/foxglove/actaim2_layout.json"
 
 runner_args=(-p "keyposes:=$keyposes" -p "jsonl_file:=$LOGS/episodes.jsonl" -p "server_timeout:=180.0")
 for a in "$@"; do runner_args+=(-p "$a"); done

@@ -17,7 +17,9 @@ for an inference, and the two services share one group (one inference at a time)
 """
 from __future__ import annotations
 
+import array
 import threading
+
 import numpy as np
 import torch
 from actaim2_msgs.msg import InteractionMode, OrthoViews
@@ -26,8 +28,10 @@ from builtin_interfaces.msg import Time
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.service_introspection import ServiceIntrospectionState
 
 from actaim2.perception.config import load_perception_config
+from actaim2.perception.ortho_views import VIEWS
 from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, MODE_GUIDANCE, NOISE_SCALE, ROLES, PolicyLoadError, PolicyModel, \
     check_noise_scale
 from actaim2.policy.locate import COMMITTED, installed_folders, resolve_checkpoint
@@ -40,6 +44,11 @@ from actaim2.ros_params import declare_parameters
 VIEWS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)  # as fusion_node publishes them
 # The mode in use is state: a recorder that starts later still learns it.
 MODE_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+# The predicted position heatmaps, for people (viz_node): the latest one is what matters.
+HEATMAPS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
+# Service events of /sample_mode and /predict_keypose (requests and responses), rclpy's default.
+INTROSPECTION_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+HEATMAP_CHANNEL = "position_probability"
 
 PARAMETERS = {
     "checkpoint": (COMMITTED, "checkpoint stem (<stem>.json + <stem>.safetensors): a path, or a name looked up in "
@@ -60,6 +69,10 @@ PARAMETERS = {
                                  "temperature): 1 = as trained, 0 = each cluster's noise-free eps (one eps per cluster and views)"),
     "predictor_views_topic": ("", "views for the action predictor when it was trained with the other robot-filter "
                                   "setting than the selector (fusion_node's alternate_views_topic); empty = views_topic"),
+    "service_introspection": (True, "publish the requests and responses of /sample_mode and "
+                                    "/predict_keypose on <service>/_service_event (ROS 2 service "
+                                    "introspection; viz_node shows the mode probabilities and the "
+                                    "predicted keypose from them)"),
 }
 
 
@@ -99,6 +112,12 @@ class PolicyNode(Node):
         self._topics = {"selector": p["views_topic"], "predictor": p["predictor_views_topic"] or p["views_topic"]}
         self._last_mode: np.ndarray | None = None
         self._mode_pub = self.create_publisher(InteractionMode, "/interaction_mode", MODE_QOS)
+        # /policy/heatmaps: each prediction's per-view position probabilities (OrthoViews),
+        # taken from the predictor's own forward pass, and only while someone subscribes.
+        self._heatmaps_pub = self.create_publisher(OrthoViews, "/policy/heatmaps", HEATMAPS_QOS)
+        self._heatmaps: torch.Tensor | None = None
+        if self._model is not None and self._model.predictor is not None:
+            self._model.predictor.register_forward_hook(self._keep_heatmaps)
         if self._model is not None:
             views_group = MutuallyExclusiveCallbackGroup()
             for topic in sorted(set(self._topics.values())):
@@ -106,8 +125,14 @@ class PolicyNode(Node):
                 self.create_subscription(OrthoViews, topic, lambda msg, roles=roles: self._on_views(msg, roles), VIEWS_QOS,
                                          callback_group=views_group)
         services = MutuallyExclusiveCallbackGroup()
-        self.create_service(SampleMode, "/sample_mode", self._on_sample_mode, callback_group=services)
-        self.create_service(PredictKeypose, "/predict_keypose", self._on_predict_keypose, callback_group=services)
+        servers = [self.create_service(SampleMode, "/sample_mode", self._on_sample_mode,
+                                       callback_group=services),
+                   self.create_service(PredictKeypose, "/predict_keypose", self._on_predict_keypose,
+                                       callback_group=services)]
+        if p["service_introspection"]:
+            for server in servers:
+                server.configure_introspection(self.get_clock(), INTROSPECTION_QOS,
+                                               ServiceIntrospectionState.CONTENTS)
         if self._model is None:
             self.get_logger().error(f"{self._load_error}; every request is answered success=false with this reason")
         else:
@@ -180,6 +205,7 @@ class PolicyNode(Node):
         if self._last_mode is None or not np.array_equal(eps, self._last_mode):
             self._publish_mode(views.stamp_ns, -1, eps)  # a mode /sample_mode did not give: cluster unknown
         stamp = stamp_msg(views.stamp_ns)
+        self._publish_heatmaps(stamp)
         response.keypose = keypose_msg(prediction.keypose, stamp)
         response.alternatives = [keypose_msg(k, stamp) for k in prediction.alternatives]
         response.success = True
@@ -191,6 +217,29 @@ class PolicyNode(Node):
         response.message = reason
         (self.get_logger().error if error else self.get_logger().warning)(reason, throttle_duration_sec=5.0)
         return response
+
+    def _keep_heatmaps(self, _module: torch.nn.Module, _inputs: tuple, output) -> None:
+        """Forward hook of the predictor: the first row's heatmap logits, kept while someone
+        reads /policy/heatmaps."""
+        watched = self._heatmaps_pub.get_subscription_count() > 0
+        self._heatmaps = output.heatmaps[0].detach() if watched else None
+
+    def _publish_heatmaps(self, stamp: Time) -> None:
+        logits, self._heatmaps = self._heatmaps, None
+        if logits is None:
+            return
+        v, h, w = logits.shape
+        probabilities = torch.softmax(logits.float().reshape(v, -1), dim=-1).cpu().numpy()
+        view = self._model.predictor.config.view_index
+        config = self._model.views_config("predictor")
+        msg = OrthoViews(height=h, width=w, views=list(VIEWS) if view is None else [VIEWS[view]],
+                         channels=[HEATMAP_CHANNEL], half_extent=float(config.half_extent),
+                         config_digest=config.digest())
+        msg.header.stamp = stamp
+        msg.header.frame_id = "world"
+        msg.center.x, msg.center.y, msg.center.z = (float(c) for c in config.center)
+        msg.data = array.array("f", probabilities.astype(np.float32).tobytes())
+        self._heatmaps_pub.publish(msg)
 
     def _publish_mode(self, stamp: int, cluster: int, eps: np.ndarray) -> None:
         msg = InteractionMode(cluster=int(cluster), embedding=eps.astype(np.float32).tolist())

@@ -34,7 +34,7 @@ COMMANDS: dict[tuple[str, ...], tuple[str, str]] = {
                        "finish the files of a bag whose recorder died, rebuild its metadata.yaml"),
     ("bag2dataset",): ("actaim2.finetune.bag2dataset_cli", "recorded teleop bags -> a training dataset (keyframes, views, embeddings, labels)"),
     ("finetune",): ("actaim2.finetune.finetune_cli", "fine-tune a checkpoint's selector and predictor on demonstrations"),
-    ("export-lerobot",): ("actaim2.export.lerobot_cli", "a stored dataset as a LeRobot dataset (format v2.1)"),
+    ("export-lerobot",): ("actaim2.export.lerobot_cli", "a stored dataset or teleop bags as a LeRobot dataset (format v2.1 or v3.0)"),
     ("report",): ("actaim2.report.report_cli", "regenerate README.md's and docs/' tables from the records in results/"),
     ("launch",): ("actaim2.launch.cli", "start a node graph (sim_panda_ring5, sim_kinova_azure, real_kinova_azure) as processes"),
 }

@@ -58,7 +58,8 @@ def parse_ros2_run(cmd: list[str]) -> NodeSpec:
 @pytest.mark.parametrize("name", sorted(GRAPHS))
 def test_launch_xml_nodes_parameters_and_remappings_equal_what_actaim2_launch_starts(name):
     from_xml = parse_launch_xml((REPO / "actaim2_policy" / "launch" / f"{name}.launch.xml").read_text())
-    started = [parse_ros2_run(cmd) for cmd in command_lines(GRAPHS[name])]
+    every_argument = dict.fromkeys(GRAPHS[name].arguments, True)  # the XML lists optional nodes
+    started = [parse_ros2_run(cmd) for cmd in command_lines(GRAPHS[name], every_argument)]
     assert len(from_xml) == len(started) > 0
     for xml_node, run_node in zip(from_xml, started):
         assert (xml_node.package, xml_node.executable, xml_node.name) == (run_node.package, run_node.executable, run_node.name)
@@ -67,6 +68,30 @@ def test_launch_xml_nodes_parameters_and_remappings_equal_what_actaim2_launch_st
         assert all(Path(f).is_file() for f in resolved), resolved
         assert {k: expand_share(v, share_dir) for k, v in xml_node.parameters.items()} == run_node.parameters
         assert xml_node.remappings == run_node.remappings
+
+
+@pytest.mark.parametrize("name", sorted(GRAPHS))
+def test_viz_node_starts_only_with_viz_true_and_unknown_arguments_are_refused(name, capsys):
+    graph = GRAPHS[name]
+    xml = (REPO / "actaim2_policy" / "launch" / f"{name}.launch.xml").read_text()
+    xml_conditions = {n.executable: n.condition for n in parse_launch_xml(xml)}
+    assert xml_conditions["viz_node"] == "viz" and graph.arguments == {"viz": False}
+    assert "viz_node" not in {n.executable for n in graph.started({})}
+    assert "viz_node" in {n.executable for n in graph.started({"viz": True})}
+    assert launch_cli.main(launch_cli_args([name, "viz:=true", "--dry-run"])) == 0
+    assert "actaim2_policy viz_node" in capsys.readouterr().out
+    assert launch_cli.main(launch_cli_args([name, "rviz:=true", "--dry-run"])) == 2
+    assert "no argument(s) ['rviz']" in capsys.readouterr().err
+    assert launch_cli.main(launch_cli_args([name, "viz:=maybe", "--dry-run"])) == 2
+    assert "is not name:=true or name:=false" in capsys.readouterr().err
+
+
+def launch_cli_args(argv: list[str]):
+    import argparse
+
+    parser = argparse.ArgumentParser()
+    launch_cli.add_arguments(parser)
+    return parser.parse_args(argv)
 
 
 def test_bad_graph_files_are_refused_with_the_reason(tmp_path):
@@ -79,6 +104,9 @@ def test_bad_graph_files_are_refused_with_the_reason(tmp_path):
         load_graphs(bad)
     with pytest.raises(GraphError, match="cannot read"):
         load_graphs(tmp_path / "missing.yaml")
+    bad.write_text("g:\n  nodes:\n    - {package: a, executable: b, if: viz}\n")
+    with pytest.raises(GraphError, match="undeclared argument"):
+        load_graphs(bad)
 
 
 def launch(graphs: Path, graph: str, logs: Path) -> subprocess.Popen:

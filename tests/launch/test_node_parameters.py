@@ -12,14 +12,15 @@ from harness import REPO
 def tables() -> dict[str, dict]:
     from actaim2_control import control_node, scripted_teleop, teleop_node
     from actaim2_perception import calibration_publisher, fusion_node
-    from actaim2_policy import bag_player, bag_recorder, episode_runner, policy_node
+    from actaim2_policy import bag_player, bag_recorder, episode_runner, policy_node, viz_node
     from actaim2_sim import parameters
 
     return {"sim_node": {**parameters.DEFAULTS, **parameters.DYNAMIC}, "fusion_node": fusion_node.PARAMETERS,
             "calibration_publisher": calibration_publisher.PARAMETERS, "control_node": control_node.PARAMETERS,
             "policy_node": policy_node.PARAMETERS, "episode_runner": episode_runner.PARAMETERS,
             "bag_player": bag_player.PARAMETERS, "bag_recorder": bag_recorder.PARAMETERS,
-            "teleop_node": teleop_node.PARAMETERS, "scripted_teleop": scripted_teleop.PARAMETERS}
+            "teleop_node": teleop_node.PARAMETERS, "scripted_teleop": scripted_teleop.PARAMETERS,
+            "viz_node": viz_node.PARAMETERS}
 
 
 # (file, node, overlay)
@@ -36,6 +37,7 @@ FILES = [
     ("actaim2_policy/config/episode_runner.yaml", "episode_runner", False),
     ("actaim2_policy/config/bag_player.yaml", "bag_player", False),
     ("actaim2_policy/config/bag_recorder.yaml", "bag_recorder", False),
+    ("actaim2_policy/config/viz_node.yaml", "viz_node", False),
 ]
 
 

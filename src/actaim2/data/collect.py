@@ -41,13 +41,13 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from actaim2.control.collision import CollisionChecker
 from actaim2.control.executor import KeyposeRunner
 from actaim2.control.ik import IKOptions, IKSolver
 from actaim2.control.model import RobotModel
 from actaim2.control.planner import KeyposePlanner
+from actaim2.progress import progress
 from actaim2.rollout.sim_executor import SimEnvExecutor
 from actaim2.data.actions import ActionSequence, Sampler
 from actaim2.data.gmm_sampler import GMMAdaptiveSampler, GMMConfig
@@ -306,7 +306,7 @@ def run_tasks(config: CollectConfig, writer: DatasetWriter, tasks: list[Task], s
     if not todo:
         return summary
     start = time.perf_counter()
-    bar = tqdm(total=len(todo), desc=stage, unit="traj", disable=not config.show_progress)
+    bar = progress(total=len(todo), desc=stage, unit="traj", disable=not config.show_progress)
     successes = 0
     with open(config.out / SKIPPED_FILE, "a") as skipped_log:
         try:

@@ -31,6 +31,7 @@ import io
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 from PIL import Image
@@ -54,7 +55,8 @@ class LeRobotFormatError(ValueError):
     """Files that are not a LeRobot v2.1 dataset as this module writes it."""
 
 
-def _pa():
+def arrow_modules():
+    """pyarrow and pyarrow.parquet (imported on use: the CLI's parser stays cheap)."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
@@ -75,7 +77,7 @@ def features_of(cameras: list[str], image_shape: tuple[int, int], joint_names: l
 def _hf_feature(spec: dict) -> tuple[dict, object]:
     """(Hugging Face ``datasets`` 3.x feature dict, arrow type) of one LeRobot feature, as
     ``get_hf_features_from_features`` maps them: image -> Image, (1,) -> Value, (n,) -> Sequence."""
-    pa, _ = _pa()
+    pa, _ = arrow_modules()
     if spec["dtype"] == "image":
         return {"mode": None, "decode": True, "id": None, "_type": "Image"}, pa.struct({"bytes": pa.binary(), "path": pa.string()})
     arrow = {"float32": pa.float32(), "int64": pa.int64()}[spec["dtype"]]
@@ -87,7 +89,7 @@ def _hf_feature(spec: dict) -> tuple[dict, object]:
 
 def arrow_schema(features: dict):
     """The parquet schema of a data file, with the ``huggingface`` metadata ``datasets`` reads features from."""
-    pa, _ = _pa()
+    pa, _ = arrow_modules()
     hf, fields = {}, []
     for name, spec in features.items():
         hf[name], arrow = _hf_feature(spec)
@@ -114,53 +116,106 @@ def _jsonl(path: Path, rows: list[dict]) -> None:
     path.write_text("".join(json.dumps(r) + "\n" for r in rows))
 
 
-def export_lerobot(dataset: str | Path, out: str | Path, successful_only: bool = False) -> dict:
-    """Write the trajectories of ``dataset`` as a LeRobot v2.1 dataset at ``out``; returns info.json."""
-    _, pq = _pa()
+@dataclass
+class EpisodeColumns:
+    """One trajectory as LeRobot frames: the data columns, their statistics, the task."""
+
+    columns: dict[str, list]
+    stats: dict[str, dict]
+    task: str
+    length: int
+    joint_names: list[str]
+    cameras: list[str]
+    features: dict
+
+
+def episode_columns(reader: DatasetReader, entry: dict, episode_index: int, first_index: int,
+                    tasks: dict[str, int]) -> EpisodeColumns:
+    """The frames of trajectory ``entry`` (one per keyframe) as episode ``episode_index`` whose
+    first frame has the global index ``first_index``; ``tasks`` (label -> task index) gains its
+    label."""
+    meta, obs = reader.observations(entry, list(KEYFRAME_OBSERVATIONS))
+    cameras = meta["cameras"]
+    names = list(meta["robot_joints"][KEYFRAME_OBSERVATIONS[0]])
+    features = features_of(cameras, obs[KEYFRAME_OBSERVATIONS[0]][cameras[0]].rgb.shape[:2], names)
+    label = entry.get("mode_label") or ""
+    task_index = tasks.setdefault(label, len(tasks))
+    n = len(KEYFRAME_OBSERVATIONS)
+    actions = np.stack([keypose_tensor(Keypose.from_json(k)).numpy() for k in meta["keyposes"]])
+    states = np.array([[meta["robot_joints"][o][j] for j in names] for o in KEYFRAME_OBSERVATIONS],
+                      np.float32)
+    columns, stats = {}, {}
+    for c in cameras:
+        images = np.stack([obs[o][c].rgb for o in KEYFRAME_OBSERVATIONS])
+        columns[f"observation.images.{c}"] = [{"bytes": png_bytes(im), "path": None}
+                                               for im in images]
+        stats[f"observation.images.{c}"] = _image_stats(images)
+    index_values = {"timestamp": np.arange(n, dtype=np.float32) / FPS, "frame_index": np.arange(n),
+                    "episode_index": np.full(n, episode_index),
+                    "index": first_index + np.arange(n),
+                    "task_index": np.full(n, task_index)}
+    columns.update({"observation.state": states.tolist(), "action": actions.tolist(),
+                    **{k: v.tolist() for k, v in index_values.items()}})
+    stats.update({"observation.state": _stats(states), "action": _stats(actions),
+                  **{k: _stats(v[:, None]) for k, v in index_values.items()}})
+    return EpisodeColumns(columns, stats, label, n, names, cameras, features)
+
+
+def check_same_robot(entry: dict, episode: EpisodeColumns, joint_names: list[str],
+                     features: dict) -> None:
+    """A LeRobotFormatError unless ``episode`` has the first episode's joints and cameras."""
+    if episode.joint_names != joint_names or set(episode.features) != set(features):
+        raise LeRobotFormatError(f"trajectory {entry['id']} has joints {episode.joint_names} / "
+                                 f"cameras {episode.cameras}, unlike the first one: one LeRobot "
+                                 f"dataset holds one robot and one camera set")
+
+
+def export_entries(dataset: str | Path, out: Path,
+                   successful_only: bool) -> tuple[DatasetReader, list[dict]]:
+    """The reader of ``dataset`` and the trajectories to export into the new folder ``out``."""
     reader = DatasetReader(dataset)
-    out = Path(out)
     if (out / "meta" / "info.json").exists():
         raise FileExistsError(f"{out} already holds a LeRobot dataset: export into a new folder")
     entries = [e for e in reader.entries if not successful_only or e.get("label")]
     if not entries:
-        raise LeRobotFormatError(f"{dataset} has no trajectory to export" + (" labelled successful" if successful_only else ""))
+        raise LeRobotFormatError(f"{dataset} has no trajectory to export"
+                                 + (" labelled successful" if successful_only else ""))
+    return reader, entries
+
+
+def episode_tables(reader: DatasetReader, entries: list[dict],
+                   tasks: dict[str, int]) -> Iterator[tuple[dict, EpisodeColumns, object]]:
+    """(entry, its frames, its arrow table) for each trajectory, as consecutive episodes of one
+    robot and camera set (a LeRobotFormatError otherwise); ``tasks`` gains their labels."""
+    pa, _ = arrow_modules()
+    schema = joint_names = features = None
+    frames = 0
+    for episode_index, entry in enumerate(entries):
+        episode = episode_columns(reader, entry, episode_index, frames, tasks)
+        if features is None:
+            joint_names, features = episode.joint_names, episode.features
+            schema = arrow_schema(features)
+        check_same_robot(entry, episode, joint_names, features)
+        frames += episode.length
+        yield entry, episode, pa.Table.from_pydict(episode.columns, schema=schema)
+
+
+def export_lerobot(dataset: str | Path, out: str | Path, successful_only: bool = False) -> dict:
+    """Write the trajectories of ``dataset`` as a LeRobot v2.1 dataset at ``out``; returns
+    info.json."""
+    _, pq = arrow_modules()
+    out = Path(out)
+    reader, entries = export_entries(dataset, out, successful_only)
     (out / "meta").mkdir(parents=True, exist_ok=True)
     tasks: dict[str, int] = {}
     episodes, episode_stats = [], []
-    features = schema = joint_names = None
     frames_total = 0
-    for episode_index, entry in enumerate(entries):
-        meta, obs = reader.observations(entry, list(KEYFRAME_OBSERVATIONS))
-        cameras = meta["cameras"]
-        names = list(meta["robot_joints"][KEYFRAME_OBSERVATIONS[0]])
-        if features is None:
-            joint_names = names
-            features = features_of(cameras, obs[KEYFRAME_OBSERVATIONS[0]][cameras[0]].rgb.shape[:2], joint_names)
-            schema = arrow_schema(features)
-        elif names != joint_names or any(f"observation.images.{c}" not in features for c in cameras):
-            raise LeRobotFormatError(f"trajectory {entry['id']} has joints {names} / cameras {cameras}, "
-                                     f"unlike the first one: one LeRobot dataset holds one robot and one camera set")
-        label = entry.get("mode_label") or ""
-        task_index = tasks.setdefault(label, len(tasks))
-        n = len(KEYFRAME_OBSERVATIONS)
-        actions = np.stack([keypose_tensor(Keypose.from_json(k)).numpy() for k in meta["keyposes"]])
-        states = np.array([[meta["robot_joints"][o][j] for j in joint_names] for o in KEYFRAME_OBSERVATIONS], np.float32)
-        columns = {}
-        stats = {}
-        for c in cameras:
-            images = np.stack([obs[o][c].rgb for o in KEYFRAME_OBSERVATIONS])
-            columns[f"observation.images.{c}"] = [{"bytes": png_bytes(im), "path": None} for im in images]
-            stats[f"observation.images.{c}"] = _image_stats(images)
-        index_values = {"timestamp": np.arange(n, dtype=np.float32) / FPS, "frame_index": np.arange(n),
-                        "episode_index": np.full(n, episode_index), "index": frames_total + np.arange(n),
-                        "task_index": np.full(n, task_index)}
-        columns.update({"observation.state": states.tolist(), "action": actions.tolist(),
-                        **{k: v.tolist() for k, v in index_values.items()}})
-        stats.update({"observation.state": _stats(states), "action": _stats(actions),
-                      **{k: _stats(v[:, None]) for k, v in index_values.items()}})
+    episodes_read = episode_tables(reader, entries, tasks)
+    for episode_index, (entry, episode, table) in enumerate(episodes_read):
+        features, stats, label, n = episode.features, episode.stats, episode.task, episode.length
         path = out / DATA_PATH.format(episode_chunk=episode_index // CHUNK_SIZE, episode_index=episode_index)
         path.parent.mkdir(parents=True, exist_ok=True)
-        pq.write_table(_pa()[0].Table.from_pydict(columns, schema=schema), path)
+        pq.write_table(table, path)
         episodes.append({"episode_index": episode_index, "tasks": [label], "length": n,
                          "actaim2_id": entry["id"], "success": entry.get("label")})
         episode_stats.append({"episode_index": episode_index, "stats": stats})
@@ -195,16 +250,43 @@ def _read_jsonl(path: Path) -> list[dict]:
     return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
 
 
-def read_lerobot(root: str | Path) -> tuple[dict, list[LeRobotEpisode]]:
-    """(info, episodes) of a LeRobot v2.1 dataset, every data file checked against info.json."""
-    _, pq = _pa()
-    root = Path(root)
+def decode_columns(table, features: dict) -> dict[str, np.ndarray]:
+    """Feature -> (frames, ...) array of a data table; images decoded to (frames, H, W, 3)."""
+    columns = {}
+    for name, spec in features.items():
+        values = table.column(name).to_pylist()
+        if spec["dtype"] == "image":
+            columns[name] = np.stack([np.asarray(Image.open(io.BytesIO(v["bytes"])).convert("RGB"))
+                                      for v in values])
+        else:
+            columns[name] = np.asarray(values, dtype=spec["dtype"])
+    return columns
+
+
+def read_info(root: Path, version: str) -> dict:
+    """meta/info.json of a LeRobot dataset of format ``version`` (else a LeRobotFormatError)."""
     try:
         info = json.loads((root / "meta" / "info.json").read_text())
     except (OSError, json.JSONDecodeError) as exc:
         raise LeRobotFormatError(f"{root}/meta/info.json cannot be read: {exc}") from exc
-    if info.get("codebase_version") != CODEBASE_VERSION:
-        raise LeRobotFormatError(f"{root} is LeRobot format {info.get('codebase_version')}, this reader reads {CODEBASE_VERSION}")
+    if info.get("codebase_version") != version:
+        raise LeRobotFormatError(f"{root} is LeRobot format {info.get('codebase_version')}, "
+                                 f"this reader reads {version}")
+    return info
+
+
+def check_totals(root: Path, info: dict, episodes: list[LeRobotEpisode], frames: int) -> None:
+    """A LeRobotFormatError unless info.json counts the episodes and frames that were read."""
+    if frames != info["total_frames"] or len(episodes) != info["total_episodes"]:
+        raise LeRobotFormatError(f"{root}: {len(episodes)} episodes / {frames} frames, info.json "
+                                 f"says {info['total_episodes']} / {info['total_frames']}")
+
+
+def read_lerobot(root: str | Path) -> tuple[dict, list[LeRobotEpisode]]:
+    """(info, episodes) of a LeRobot v2.1 dataset, every data file checked against info.json."""
+    _, pq = arrow_modules()
+    root = Path(root)
+    info = read_info(root, CODEBASE_VERSION)
     tasks = {t["task_index"]: t["task"] for t in _read_jsonl(root / "meta" / "tasks.jsonl")}
     rows = sorted(_read_jsonl(root / "meta" / "episodes.jsonl"), key=lambda e: e["episode_index"])
     features = info["features"]
@@ -216,13 +298,7 @@ def read_lerobot(root: str | Path) -> tuple[dict, list[LeRobotEpisode]]:
         table = pq.read_table(path)
         if not table.schema.equals(expected) or table.schema.metadata != expected.metadata:
             raise LeRobotFormatError(f"{path}: schema {table.schema} is not the one info.json's features give")
-        columns = {}
-        for name, spec in features.items():
-            values = table.column(name).to_pylist()
-            if spec["dtype"] == "image":
-                columns[name] = np.stack([np.asarray(Image.open(io.BytesIO(v["bytes"])).convert("RGB")) for v in values])
-            else:
-                columns[name] = np.asarray(values, dtype=spec["dtype"])
+        columns = decode_columns(table, features)
         if len(table) != row["length"] or not np.array_equal(columns["episode_index"], np.full(len(table), i)) \
                 or not np.array_equal(columns["index"], next_index + np.arange(len(table))):
             raise LeRobotFormatError(f"{path}: {len(table)} frames, episode or global index columns disagree with episodes.jsonl")
@@ -231,7 +307,5 @@ def read_lerobot(root: str | Path) -> tuple[dict, list[LeRobotEpisode]]:
         if len(task_indices) != 1 or tasks.get(task_indices.pop()) not in row["tasks"]:
             raise LeRobotFormatError(f"{path}: task_index column does not name the episode's task {row['tasks']}")
         episodes.append(LeRobotEpisode(i, row["tasks"][0], row, columns))
-    if next_index != info["total_frames"] or len(episodes) != info["total_episodes"]:
-        raise LeRobotFormatError(f"{root}: {len(episodes)} episodes / {next_index} frames, info.json says "
-                                 f"{info['total_episodes']} / {info['total_frames']}")
+    check_totals(root, info, episodes, next_index)
     return info, episodes

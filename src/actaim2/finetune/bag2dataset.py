@@ -48,6 +48,7 @@ from actaim2.perception.fusion import NO_COLOUR
 from actaim2.perception.joint_history import JointStateUnavailable
 from actaim2.perception.self_filter import RobotSelfFilter
 from actaim2.perception.static_tf import UnknownFrameError
+from actaim2.progress import progress
 
 SAMPLER = "teleop"  # the sampler name of demonstrations in the index
 REPORT_FILE = "bag2dataset.json"
@@ -236,7 +237,8 @@ def bags_to_dataset(bags: Sequence[str | Path], out: str | Path, config: Percept
     reports: list[BagReport] = []
     z: dict[str, np.ndarray] = {}
     success: dict[str, bool] = {}
-    with DatasetWriter(out, info) as writer:
+    with DatasetWriter(out, info) as writer, progress(total=len(bags), desc="bag2dataset",
+                                                      unit="bag") as bar:
         for bag in bags:
             bag_report = BagReport(str(bag))
             reports.append(bag_report)
@@ -259,6 +261,8 @@ def bags_to_dataset(bags: Sequence[str | Path], out: str | Path, config: Percept
                     bag_report.intrinsics.extend(fits)
             except BagProblem as exc:
                 problem(f"{exc}; bag skipped")
+            bar.update(1)
+            bar.set_postfix(trajectories=len(writer.entries))
         entries = list(writer.entries)
     _write_labels(out, entries, z, success, digest)
     summary = _summary(reports, entries)

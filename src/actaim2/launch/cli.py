@@ -1,6 +1,7 @@
 """`actaim2 launch GRAPH`: start a node graph as separate processes (no `launch` package here).
 
     actaim2 launch sim_panda_ring5                 # every node of the graph, logs in runs/launch/<graph>/
+    actaim2 launch sim_panda_ring5 viz:=true       # with viz_node (the live Foxglove view)
     actaim2 launch sim_panda_ring5 --dry-run       # print the command lines only
     actaim2 launch --write-xml actaim2_policy/launch   # regenerate the ROS XML launch files
 
@@ -20,7 +21,8 @@ import sys
 import time
 from pathlib import Path
 
-from actaim2.launch.graph import GRAPH_ENVIRONMENT, Graph, GraphError, load_graphs, to_launch_xml
+from actaim2.launch.graph import (GRAPH_ENVIRONMENT, Graph, GraphError, NodeSpec, load_graphs,
+                                  parse_arguments, to_launch_xml)
 from actaim2.ros_main import STACK_DUMP_SIGNAL
 
 STOP_TIMEOUT = 10.0  # s a node gets to exit after SIGINT before it is killed
@@ -47,13 +49,17 @@ def share_dir(package: str) -> str:
     return get_package_share_directory(package)
 
 
-def command_lines(graph: Graph) -> list[list[str]]:
-    """The ``ros2 run`` command of every node, in graph order."""
-    return [["ros2", "run", spec.package, spec.executable, *spec.ros_args(share_dir)] for spec in graph.nodes]
+def command_lines(graph: Graph, arguments: dict[str, bool] | None = None) -> list[list[str]]:
+    """The ``ros2 run`` command of every node that starts with the launch ``arguments`` (the
+    graph's defaults for those not given), in graph order."""
+    return [["ros2", "run", spec.package, spec.executable, *spec.ros_args(share_dir)]
+            for spec in graph.started(arguments or {})]
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("graph", nargs="?", help="graph name (see --list)")
+    parser.add_argument("arguments", nargs="*", metavar="NAME:=VALUE",
+                        help="launch arguments of the graph, e.g. viz:=true (see --list)")
     parser.add_argument("--graphs", type=Path, default=None, help="graphs YAML (default: actaim2_policy's launch/graphs.yaml)")
     parser.add_argument("--logs", type=Path, default=Path("runs/launch"), help="one log file per node under LOGS/<graph>/")
     parser.add_argument("--dry-run", action="store_true", help="print the command lines and exit")
@@ -75,21 +81,28 @@ def main(args: argparse.Namespace) -> int:
         return 0
     if args.list or not args.graph:
         for graph in graphs.values():
-            print(f"{graph.name:20s} {graph.description}  [{', '.join(n.name for n in graph.nodes)}]")
+            arguments = "".join(f" {k}:={str(v).lower()}" for k, v in graph.arguments.items())
+            nodes = ", ".join(n.name for n in graph.nodes)
+            print(f"{graph.name:20s} {graph.description}  [{nodes}]{arguments}")
         return 0 if args.list else 2
     if args.graph not in graphs:
         print(f"actaim2 launch: unknown graph '{args.graph}'; graphs: {', '.join(graphs)}", file=sys.stderr)
         return 2
     graph = graphs[args.graph]
-    commands = command_lines(graph)
+    try:
+        arguments = parse_arguments(args.arguments)
+        commands = command_lines(graph, arguments)
+    except GraphError as error:
+        print(f"actaim2 launch: {error}", file=sys.stderr)
+        return 2
     if args.dry_run:
         for cmd in commands:
             print(" ".join(cmd))
         return 0
-    return run_graph(graph, commands, args.logs / graph.name)
+    return run_graph(graph.started(arguments), commands, args.logs / graph.name)
 
 
-def run_graph(graph: Graph, commands: list[list[str]], log_dir: Path) -> int:
+def run_graph(nodes: tuple[NodeSpec, ...], commands: list[list[str]], log_dir: Path) -> int:
     """Start every node, wait until Ctrl-C/SIGTERM or until one exits, then stop them all."""
     log_dir.mkdir(parents=True, exist_ok=True)
     env = {**os.environ, **GRAPH_ENVIRONMENT}
@@ -101,7 +114,7 @@ def run_graph(graph: Graph, commands: list[list[str]], log_dir: Path) -> int:
     previous = {s: signal.signal(s, request_stop) for s in (signal.SIGINT, signal.SIGTERM)}
     procs: list[tuple[str, subprocess.Popen, Path]] = []
     try:
-        for spec, cmd in zip(graph.nodes, commands):
+        for spec, cmd in zip(nodes, commands):
             log_path = log_dir / f"{spec.name}.log"
             with open(log_path, "w") as log:
                 procs.append((spec.name, subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env,

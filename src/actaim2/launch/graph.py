@@ -12,6 +12,10 @@ A graph file maps a graph name to its nodes::
           parameters: {robot: panda, rig: ring5}            # override the files, as -p name:=value
                                                             # ($(find-pkg-share <package>) is expanded)
           remappings: {/points2: /camera/points2}           # from: to
+        - package: actaim2_policy
+          executable: viz_node
+          if: viz                                           # only when the argument viz is true
+      arguments: {viz: false}                               # launch arguments and their defaults
 
 Parameter files are named ``<package>/<path>`` and resolved in that package's share folder
 (``$(find-pkg-share <package>)/<path>`` in the XML), so the same list works on a ROS 2 install,
@@ -41,6 +45,7 @@ class NodeSpec:
     params_files: tuple[str, ...] = ()
     parameters: dict[str, object] = field(default_factory=dict)
     remappings: dict[str, str] = field(default_factory=dict)
+    condition: str = ""  # the launch argument that must be true for the node to start; "" = always
 
     def ros_args(self, share_dir) -> list[str]:
         """The ``--ros-args`` part of ``ros2 run`` for this node; ``share_dir(package)`` finds a
@@ -61,6 +66,27 @@ class Graph:
     name: str
     description: str
     nodes: tuple[NodeSpec, ...]
+    arguments: dict[str, bool] = field(default_factory=dict)  # launch argument -> default
+
+    def started(self, values: dict[str, bool]) -> tuple[NodeSpec, ...]:
+        """The nodes that start with the launch arguments ``values`` (defaults for the others)."""
+        unknown = sorted(set(values) - set(self.arguments))
+        if unknown:
+            raise GraphError(f"graph {self.name} has no argument(s) {unknown}; "
+                             f"arguments: {sorted(self.arguments) or 'none'}")
+        chosen = {**self.arguments, **values}
+        return tuple(n for n in self.nodes if not n.condition or chosen[n.condition])
+
+
+def parse_arguments(texts: list[str]) -> dict[str, bool]:
+    """``name:=true|false`` launch arguments as ``ros2 launch`` takes them."""
+    values = {}
+    for text in texts:
+        name, sep, value = text.partition(":=")
+        if not sep or value.lower() not in ("true", "false"):
+            raise GraphError(f"launch argument '{text}' is not name:=true or name:=false")
+        values[name] = value.lower() == "true"
+    return values
 
 
 def expand_share(text: str, share_dir) -> str:
@@ -93,16 +119,23 @@ def load_graphs(path: Path) -> dict[str, Graph]:
     for name, body in raw.items():
         nodes = []
         for k, entry in enumerate((body or {}).get("nodes", [])):
-            unknown = set(entry) - {"package", "executable", "name", "params_files", "parameters", "remappings"}
+            unknown = set(entry) - {"package", "executable", "name", "params_files", "parameters",
+                                    "remappings", "if"}
             if unknown or not {"package", "executable"} <= set(entry):
                 raise GraphError(f"{path}: graph {name} node {k}: needs package and executable; unknown keys {sorted(unknown)}")
             nodes.append(NodeSpec(entry["package"], entry["executable"], entry.get("name", entry["executable"]),
                                   tuple(entry.get("params_files", ())), dict(entry.get("parameters") or {}),
-                                  dict(entry.get("remappings") or {})))
+                                  dict(entry.get("remappings") or {}), str(entry.get("if", ""))))
+        arguments = {str(k): bool(v) for k, v in ((body or {}).get("arguments") or {}).items()}
+        undeclared = sorted({n.condition for n in nodes if n.condition} - set(arguments))
+        if undeclared:
+            raise GraphError(f"{path}: graph {name}: nodes depend on undeclared argument(s) "
+                             f"{undeclared}")
         names = [n.name for n in nodes]
         if len(set(names)) != len(names):
             raise GraphError(f"{path}: graph {name} has duplicate node names: {names}")
-        graphs[name] = Graph(name, str((body or {}).get("description", "")), tuple(nodes))
+        description = str((body or {}).get("description", ""))
+        graphs[name] = Graph(name, description, tuple(nodes), arguments)
     return graphs
 
 
@@ -111,10 +144,14 @@ def to_launch_xml(graph: Graph) -> str:
     root = ElementTree.Element("launch")
     root.append(ElementTree.Comment(f" {graph.name}: {graph.description} "
                                     "(generated from graphs.yaml beside this file, whose header says how: edit that, not this) "))
+    for key, value in graph.arguments.items():
+        ElementTree.SubElement(root, "arg", name=key, default=format_value(value))
     for key, value in GRAPH_ENVIRONMENT.items():
         ElementTree.SubElement(root, "set_env", name=key, value=value)
     for spec in graph.nodes:
         node = ElementTree.SubElement(root, "node", pkg=spec.package, exec=spec.executable, name=spec.name, output="screen")
+        if spec.condition:
+            node.set("if", f"$(var {spec.condition})")
         for ref in spec.params_files:
             package, _, relative = ref.partition("/")
             ElementTree.SubElement(node, "param", {"from": f"$(find-pkg-share {package})/{relative}"})
@@ -138,5 +175,7 @@ def parse_launch_xml(text: str) -> list[NodeSpec]:
             else:
                 parameters[param.attrib["name"]] = param.attrib["value"]
         remaps = {r.attrib["from"]: r.attrib["to"] for r in node.iter("remap")}
-        nodes.append(NodeSpec(node.attrib["pkg"], node.attrib["exec"], node.attrib["name"], tuple(files), parameters, remaps))
+        condition = node.attrib.get("if", "").removeprefix("$(var ").removesuffix(")")
+        nodes.append(NodeSpec(node.attrib["pkg"], node.attrib["exec"], node.attrib["name"],
+                              tuple(files), parameters, remaps, condition))
     return nodes

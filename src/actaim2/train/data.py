@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from tqdm import tqdm
 
 from actaim2.data.trajectory import PHASES
+from actaim2.progress import progress
 
 CACHE_DIR = "cache"
 _DIGESTED = ("dataset.json", "index.jsonl", "labels.jsonl", "embeddings.npz")
@@ -145,7 +145,7 @@ def build_cache(root: str | Path, perception, splits: list[str], perception_dige
     keyposes = np.zeros((n, phases, 8), np.float32)
     gripper = np.zeros((n, phases), bool)
     z = np.zeros((n, len(modes.embeddings[modes.entries[0]["id"]])), np.float32)
-    for i in tqdm(range(n), desc="rendering views", disable=not show_progress):
+    for i in progress(range(n), desc="rendering views", unit="sample", disable=not show_progress):
         item = modes[i]
         init[i] = item["views"].numpy()
         z[i] = item["z"].numpy()

@@ -32,7 +32,6 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from tqdm import tqdm
 
 from actaim2.data.storage import object_of, sampler_of
 from actaim2.models.predictor import CONDITIONING_LAYERS, ActionPredictor, PredictorConfig, proprio_features
@@ -42,6 +41,7 @@ from actaim2.models.augment import augment
 from actaim2.models.gumbel import gumbel_temperature
 from actaim2.models.view_geometry import CubePlacement
 from actaim2.perception.ortho_views import CHANNELS
+from actaim2.progress import progress
 from actaim2.train import checkpoint
 from actaim2.train.action_loss import action_loss, action_targets, heatmap_log_likelihood
 from actaim2.train.balance import cluster_balanced_weights
@@ -341,7 +341,8 @@ class Trainer:
             self.eps_pools = self._eps_pools(np.unique(items[:, 0]))
         probabilities = self._draw_probabilities(phase, items)
         last_save, t0, metrics = time.monotonic(), time.monotonic(), {}
-        bar = tqdm(total=total, initial=self.step, desc=f"{phase}", disable=not self.show)
+        bar = progress(total=total, initial=self.step, desc=f"{phase}", unit="step",
+                       disable=not self.show)
         for m in self._modules(phase):
             m.train()
         while self.step < total:

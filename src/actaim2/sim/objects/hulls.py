@@ -42,6 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
+from actaim2.progress import progress
+
 from .errors import ObjectLoadError
 from .mesh import Mesh, convex_hull, decimate, read_mesh, solid_fraction, write_obj
 
@@ -159,15 +161,24 @@ def _prepare_one(job: tuple[Path, HullParams, Path]) -> MeshReport:
 def prepare_meshes(meshes: list[Path], cache: HullCache, workers: int = 1) -> list[MeshReport]:
     """Prepare every mesh (in ``workers`` processes when > 1); reports in the given order."""
     meshes = list(dict.fromkeys(Path(m) for m in meshes))
+    bar = progress(total=len(meshes), desc="convex hulls", unit="mesh")
     if workers <= 1 or len(meshes) < 2:
-        return [cache.prepare(m) for m in meshes]
+        with bar:
+            return [_counted(cache.prepare(m), bar) for m in meshes]
     import multiprocessing as mp
 
     # largest first, so no long mesh starts last and leaves the other worker idle
     order = sorted(range(len(meshes)), key=lambda k: -meshes[k].stat().st_size)
-    with ProcessPoolExecutor(min(workers, len(meshes)), mp_context=mp.get_context("spawn")) as pool:
-        done = dict(zip(order, pool.map(_prepare_one, [(meshes[k], cache.params, cache.root) for k in order])))
+    spawn = mp.get_context("spawn")
+    with bar, ProcessPoolExecutor(min(workers, len(meshes)), mp_context=spawn) as pool:
+        jobs = [(meshes[k], cache.params, cache.root) for k in order]
+        done = dict(zip(order, (_counted(r, bar) for r in pool.map(_prepare_one, jobs))))
     return [done[k] for k in range(len(meshes))]
+
+
+def _counted(report: MeshReport, bar) -> MeshReport:
+    bar.update(1)
+    return report
 
 
 def needs_hulls(mesh: Mesh, scale: np.ndarray) -> bool:

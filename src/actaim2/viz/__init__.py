@@ -1,0 +1,1 @@
+"""What people look at: the live Foxglove view's messages (``foxglove_live``)."""
