@@ -41,6 +41,7 @@ from actaim2.models.view_geometry import CubePlacement
 from actaim2.perception.config import PerceptionConfig
 from actaim2.policy.requests import RequestError, check_cluster, check_embedding, check_phase
 from actaim2.policy.views import Views
+from actaim2.profiling import timed
 from actaim2.train import checkpoint
 from actaim2.train.distributed import choose_device
 
@@ -152,6 +153,7 @@ class PolicyModel:
     def _batch(self, views: Views) -> torch.Tensor:
         return torch.from_numpy(np.ascontiguousarray(views.data))[None].to(self.device)
 
+    @timed("model forward")
     @torch.no_grad()
     def sample_mode(self, views: Views, cluster: int, seed: int, noise_scale: float = NOISE_SCALE) -> ModeSample:
         """``noise_scale``: the spread of the latent draw (``ModeSelector.sample``; 0 = the cluster's noise-free eps)."""
@@ -164,6 +166,7 @@ class PolicyModel:
         return ModeSample(int(result.cluster[0]), result.eps[0].float().cpu().numpy(),
                           result.cluster_probabilities[0].float().cpu().numpy())
 
+    @timed("model forward")
     @torch.no_grad()
     def predict_keypose(self, views: Views, eps: np.ndarray | list[float], phase: int, gripper_closed: bool,
                         alternatives: int = 0, separation_deg: float = ALTERNATIVE_SEPARATION_DEG,
