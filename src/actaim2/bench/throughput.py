@@ -10,8 +10,9 @@ checkpoint's load and the renderer's shader compilation are paid once per worker
 
 Each run records an :class:`actaim2.profiling.Profile`: the sections the library marks
 (physics steps, rendering, object loading, depth back-projection, the object cloud, views,
-IK, collision checks, planning, model forward) in exclusive wall time, and the rest of the
-wall time as "Python and the rest" (loop bookkeeping, samplers, trajectory encoding, outcome).
+action sampling, IK, collision checks, planning, model forward, trajectory encoding) in
+exclusive wall time, and the rest of the wall time as "Python and the rest" (loop bookkeeping,
+outcome, conversions).
 Rendering is also given per observation and per camera. Hulls come from ``--hull-cache``
 (default: the default cache); a collision mesh without an entry loads as one hull, and the
 output says how many meshes of the objects have none.
@@ -26,8 +27,8 @@ from pathlib import Path
 
 DEFAULT_OBJECTS = Path("../shared/partnet")
 OTHER = "Python and the rest"
-ORDER = ("physics", "render", "object load", "back-projection", "object cloud", "views", "IK",
-         "collision checks", "planning", "model forward")
+ORDER = ("physics", "render", "object load", "back-projection", "object cloud", "views", "sampling", "IK",
+         "collision checks", "planning", "model forward", "encoding")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

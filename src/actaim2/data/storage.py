@@ -46,6 +46,7 @@ from actaim2.data.trajectory import (
     Observation,
     Trajectory,
 )
+from actaim2.profiling import timed
 
 FORMAT_VERSION = 1
 DEPTH_SCALE = 1000.0  # stored depth unit: millimetres
@@ -119,6 +120,7 @@ class EncodedTrajectory:
         return sum(len(data) for _, data in self.members)
 
 
+@timed("encoding")
 def encode_trajectory(traj: Trajectory) -> EncodedTrajectory:
     cameras = sorted(traj.observations[OBSERVATION_NAMES[0]])
     members: list[tuple[str, bytes]] = []
