@@ -75,8 +75,10 @@ def voxel_downsample(xyz: torch.Tensor, rgb: torch.Tensor, origin: np.ndarray, v
     sorted voxel ids, 5x faster here than numpy's reduceat or bincount, on rows (6, N) rather
     than points (N, 6), which is again 1.7x faster.
     """
-    k = (xyz - torch.from_numpy(origin)[:, None]).div_(voxel_size).long().clamp_(0, cells - 1)  # inside the grid: trunc = floor
-    ordered = k[0].mul_(cells).add_(k[1]).mul_(cells).add_(k[2]).numpy()
+    # Keys of grids below 2^31 cells are computed in int32: converting to it is 3x faster here than to int64.
+    key_type = torch.int32 if cells**3 < 2**31 else torch.int64
+    k = (xyz - torch.from_numpy(origin)[:, None]).div_(voxel_size).to(key_type).clamp_(0, cells - 1)  # trunc = floor
+    ordered = k[0].mul_(cells).add_(k[1]).mul_(cells).add_(k[2]).numpy().astype(np.int64)
     ordered <<= 32
     ordered |= np.arange(len(ordered))
     ordered.sort()
@@ -88,9 +90,10 @@ def voxel_downsample(xyz: torch.Tensor, rgb: torch.Tensor, origin: np.ndarray, v
     order = torch.from_numpy(ordered & 0xFFFFFFFF)
     values = torch.empty((6, len(order)))  # x, y, z, r, g, b rows of the points in voxel order
     torch.index_select(xyz, 1, order, out=values[:3])
-    values[3:] = rgb.index_select(0, order).T
+    # Transposes between rows and points go through numpy: 2-5x faster here than torch's.
+    values[3:].numpy()[...] = np.take(rgb.numpy(), ordered & 0xFFFFFFFF, axis=0).T
     means = torch.zeros((6, len(counts))).index_add_(1, torch.from_numpy(first).cumsum(0).sub_(1), values).div_(counts)
-    return means[:3].T.contiguous().numpy(), means[3:].round_().to(torch.uint8).T.contiguous().numpy()
+    return np.ascontiguousarray(means[:3].numpy().T), np.ascontiguousarray(means[3:].round_().to(torch.uint8).numpy().T)
 
 
 def remove_statistical_outliers(xyz: np.ndarray, neighbors: int, std_ratio: float) -> np.ndarray:
@@ -117,7 +120,7 @@ def fuse(clouds: list[CameraCloud], config: FusionConfig) -> FusedCloud:
         origin = np.asarray(config.center, dtype=np.float32) - np.float32(config.half_extent)
         fused = FusedCloud(*voxel_downsample(xyz, rgb, origin, config.voxel_size, cells))
     else:
-        fused = FusedCloud(xyz.T.contiguous().numpy(), rgb.contiguous().numpy())
+        fused = FusedCloud(np.ascontiguousarray(xyz.numpy().T), np.ascontiguousarray(rgb.numpy()))
     if config.outlier_neighbors > 0:
         fused = fused.subset(remove_statistical_outliers(fused.xyz, config.outlier_neighbors, config.outlier_std_ratio))
     return fused
