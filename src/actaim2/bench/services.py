@@ -4,7 +4,9 @@
   a private ROS_DOMAIN_ID, loopback only). The probe publishes one set of views and times
   ``--calls`` calls of /sample_mode, then (a second probe) of /predict_keypose, from request to
   response: p50, p99. The node's CPU time per call (from /proc, load-independent) and its
-  resident memory (RSS) afterwards are read too.
+  resident memory (RSS) afterwards are read too. Then the same against ``policy_node`` of the
+  git revision ``--baseline`` (its sources exported from history, ``actaim2.bench.baseline``),
+  back to back on the same machine, and the ratios of the p50s.
 * Episodes: ``actaim2 launch sim_panda_ring5`` (SAPIEN, ring5 at 128 px, fusion, control, policy)
   and ``episode_runner``; wall time per episode from its JSONL records.
 
@@ -12,8 +14,8 @@ The checkpoint: ``--checkpoint``, else the committed one (``actaim2_ring5`` in
 share/actaim2_policy/checkpoints), else an *untrained* checkpoint of the CPU default sizes
 (train/configs/cpu_default.yaml, eps of 1920), written here: its inference costs what a trained
 one of those sizes costs, but its keyposes mean nothing, so episodes then run the heuristic
-sampler instead and the output says so. Targets on 2 cores: /predict_keypose p50 <= 30 ms,
-/sample_mode p50 <= 10 ms, an episode <= 15 s. Other jobs on the machine inflate every figure:
+sampler instead and the output says so. Targets on 2 cores: /predict_keypose p50 <= 15 ms,
+/sample_mode p50 <= 5 ms, an episode <= 15 s. Other jobs on the machine inflate every figure:
 the load average is printed before and after.
 """
 from __future__ import annotations
@@ -23,13 +25,15 @@ import json
 import os
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from actaim2.bench.baseline import BASELINE_REVISION, export_tree, node_command, python_path
 from actaim2.bench.processes import private_ros_env, ros_run_command, start_logged, stop_group
 
-TARGETS_MS = {"sample_mode": 10.0, "predict_keypose": 30.0}
+TARGETS_MS = {"sample_mode": 5.0, "predict_keypose": 15.0}
 EPISODE_TARGET_S = 15.0
 UNTRAINED_EMBEDDING = 1920  # z of the default autoencoder on ring5: 5 cameras x 384
 
@@ -41,6 +45,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--threads", type=int, default=1, help="policy_node torch_threads (its default: 1)")
     parser.add_argument("--episodes", type=int, default=3, help="sim-loop episodes to time (0: skip)")
     parser.add_argument("--workdir", type=Path, default=Path("runs/bench_services"), help="logs, records, temporary checkpoint")
+    parser.add_argument("--baseline", default=BASELINE_REVISION,
+                        help="git revision whose policy_node is timed after today's ('' = skip)")
 
 
 def untrained_checkpoint(stem: Path, perception) -> Path:
@@ -82,13 +88,18 @@ def _rss_mb(pid: int) -> float:
     return float("nan")
 
 
-def round_trips(stem: Path, perception_arg: str, perception, args: argparse.Namespace, workdir: Path) -> dict:
-    """Per service: round trips (ms) and the node's CPU time per call (ms); the node's RSS (MB)."""
+def round_trips(stem: Path, perception_arg: str, perception, args: argparse.Namespace, workdir: Path,
+                tree: Path | None = None) -> dict:
+    """Per service: round trips (ms) and the node's CPU time per call (ms); the node's RSS (MB).
+    ``tree``: run the policy_node of this exported revision instead of today's."""
     env = private_ros_env()
     views = workdir / "views.npz"
     save_views(views, perception)
-    node = start_logged(ros_run_command("actaim2_policy", "policy_node", {
-        "checkpoint": stem, "perception_config": perception_arg, "torch_threads": args.threads}), env, workdir / "policy_node.log")
+    command = ros_run_command("actaim2_policy", "policy_node", {
+        "checkpoint": stem, "perception_config": perception_arg, "torch_threads": args.threads})
+    if tree is not None:
+        command = node_command(tree, "actaim2_policy", "policy_node", command[4:])
+    node = start_logged(command, env if tree is None else dict(env, PYTHONPATH=python_path(tree)), workdir / "policy_node.log")
     result: dict = {}
     try:
         for service in ("sample_mode", "predict_keypose"):
@@ -144,11 +155,10 @@ def episode_times(stem: Path | None, perception_arg: str, args: argparse.Namespa
             "phases": [len(r["phases"]) for r in rows]}
 
 
-def _ms_row(name: str, values: list[float], cpu_ms: float, target: float) -> str:
+def _ms_row(name: str, values: list[float], cpu_ms: float, target: float | None) -> str:
     p50, p99 = np.percentile(values, 50), np.percentile(values, 99)
-    verdict = "met" if p50 <= target else "MISSED"
-    return (f"| /{name} round trip | {p50:.1f} ms | {p99:.1f} ms | {cpu_ms:.1f} ms | {len(values)} | "
-            f"p50 <= {target:g} ms: {verdict} |")
+    verdict = "" if target is None else f"p50 <= {target:g} ms: {'met' if p50 <= target else 'MISSED'}"
+    return f"| {name} round trip | {p50:.1f} ms | {p99:.1f} ms | {cpu_ms:.1f} ms | {len(values)} | {verdict} |"
 
 
 def main(args: argparse.Namespace) -> int:
@@ -174,9 +184,23 @@ def main(args: argparse.Namespace) -> int:
         print(f"checkpoint: none committed yet ({exc}); timing an UNTRAINED checkpoint of the CPU default sizes ({stem})")
     result = round_trips(stem, args.perception, perception, args, workdir)
     print(f"served: {result['served']}\n")
-    rows = ["| measurement | p50 | p99 | node CPU per call | n | target |", "|---|---|---|---|---|---|",
-            *(_ms_row(name, result[name], result[f"{name}_cpu_ms"], TARGETS_MS[name]) for name in ("sample_mode", "predict_keypose")),
-            f"| policy_node RSS after the calls | {result['rss_mb']:.0f} MB | | | | |"]
+    baseline = None
+    if args.baseline:
+        with tempfile.TemporaryDirectory(prefix="bench_services_") as tmp:
+            tree = export_tree(args.baseline, Path(tmp))
+            (workdir / "baseline").mkdir(exist_ok=True)
+            baseline = round_trips(stem, args.perception, perception, args, workdir / "baseline", tree)
+    rows = ["| measurement | p50 | p99 | node CPU per call | n | target |", "|---|---|---|---|---|---|"]
+    for name in ("sample_mode", "predict_keypose"):
+        rows.append(_ms_row(f"/{name}", result[name], result[f"{name}_cpu_ms"], TARGETS_MS[name]))
+        if baseline is not None:
+            rows.append(_ms_row(f"/{name}, policy_node of {args.baseline}", baseline[name], baseline[f"{name}_cpu_ms"], None))
+    rows.append(f"| policy_node RSS after the calls | {result['rss_mb']:.0f} MB | | | | |")
+    if baseline is not None:
+        ratios = ", ".join(f"/{name} {np.median(result[name]) / np.median(baseline[name]):.2f}x "
+                           f"(node CPU {result[f'{name}_cpu_ms'] / baseline[f'{name}_cpu_ms']:.2f}x)"
+                           for name in ("sample_mode", "predict_keypose"))
+        print(f"p50 today / policy_node of {args.baseline}: {ratios}")
     if args.episodes > 0:
         episodes = episode_times(trained, args.perception, args, workdir)
         seconds = episodes["seconds"]

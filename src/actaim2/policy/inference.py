@@ -154,7 +154,7 @@ class PolicyModel:
         return torch.from_numpy(np.ascontiguousarray(views.data))[None].to(self.device)
 
     @timed("model forward")
-    @torch.no_grad()
+    @torch.inference_mode()
     def sample_mode(self, views: Views, cluster: int, seed: int, noise_scale: float = NOISE_SCALE) -> ModeSample:
         """``noise_scale``: the spread of the latent draw (``ModeSelector.sample``; 0 = the cluster's noise-free eps)."""
         check_noise_scale(noise_scale)
@@ -167,7 +167,7 @@ class PolicyModel:
                           result.cluster_probabilities[0].float().cpu().numpy())
 
     @timed("model forward")
-    @torch.no_grad()
+    @torch.inference_mode()
     def predict_keypose(self, views: Views, eps: np.ndarray | list[float], phase: int, gripper_closed: bool,
                         alternatives: int = 0, separation_deg: float = ALTERNATIVE_SEPARATION_DEG,
                         guidance: float = 0.0) -> KeyposePrediction:
