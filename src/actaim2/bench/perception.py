@@ -129,15 +129,19 @@ def save_scene(scene: Scene, path: Path) -> None:
     np.savez(path, **arrays)
 
 
-def in_process(scene: Scene, config, repeats: int, baseline: str = "", splat_baseline: str = "") -> dict[str, tuple[np.ndarray, np.ndarray]]:
+def in_process(scene: Scene, config, repeats: int, baseline: str = "",
+               splat_baseline: str = "") -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], dict[str, float]]:
     """Wall and CPU milliseconds per set: payload bytes -> views, robot removed from the views.
 
     Returns {"today": (wall, cpu)} and, given revisions, {"<baseline>": ..., "renderer of
     <splat_baseline>": ...}, timed in the same loop (alternating), so that load on a shared machine
     hits all alike; a revision git cannot show is reported and left out. CPU time of this process
     is reported next to wall time because other jobs on a shared machine stretch wall time; with
-    one torch thread, CPU time approximates an idle machine.
+    one torch thread, CPU time approximates an idle machine. Second: where today's wall time
+    goes, ms per set for each section the path marks (``actaim2.profiling``) and "rest".
     """
+    from actaim2.profiling import Profile, recording
+
     from actaim2.perception import cloud_codec, fusion, pipeline, self_filter
     from actaim2.robots import load_robot_spec
 
@@ -176,14 +180,19 @@ def in_process(scene: Scene, config, repeats: int, baseline: str = "", splat_bas
             print(f"renderer before splatting not timed: {exc}")
     payloads = [(cloud_codec.encode(c.xyz, c.rgb), c.T_world_optical) for c in scene.cameras]
     times: dict[str, tuple[list, list]] = {name: ([], []) for name in paths}
+    profile = Profile()
     for i in range(repeats + 3):  # the first runs pay for allocations and lazy imports
         for name, run in paths.items():
-            start, start_cpu = time.perf_counter(), time.process_time()
-            run(payloads)
+            with recording(profile if name == "today" and i >= 3 else Profile()):
+                start, start_cpu = time.perf_counter(), time.process_time()
+                run(payloads)
+                wall, cpu = time.perf_counter() - start, time.process_time() - start_cpu
             if i >= 3:
-                times[name][0].append((time.perf_counter() - start) * 1e3)
-                times[name][1].append((time.process_time() - start_cpu) * 1e3)
-    return {name: (np.array(wall), np.array(cpu)) for name, (wall, cpu) in times.items()}
+                times[name][0].append(wall * 1e3)
+                times[name][1].append(cpu * 1e3)
+    stages = {name: seconds * 1e3 / repeats for name, seconds in profile.seconds.items()}
+    stages["rest"] = float(np.mean(times["today"][0])) - sum(stages.values())
+    return {name: (np.array(wall), np.array(cpu)) for name, (wall, cpu) in times.items()}, stages
 
 
 def _ros_run(executable: str, params: dict, env: dict[str, str], log: Path, **popen) -> subprocess.Popen:
@@ -256,15 +265,18 @@ def main(args: argparse.Namespace) -> int:
     print("|---|---|---|---|---|---|---|---|---|---|")
     scenes = {rig: build_scene(rig) for rig in args.rigs}
     configs = {(rig, r): load_perception_config(rig).replace(resolution=r) for rig in args.rigs for r in args.resolutions}
-    ratios = []
+    ratios, breakdowns = [], []
     for rig, scene in scenes.items():
         for resolution in args.resolutions:
-            timed = in_process(scene, configs[rig, resolution], args.repeats, args.baseline, args.splat_baseline)
+            timed, stages = in_process(scene, configs[rig, resolution], args.repeats, args.baseline, args.splat_baseline)
             for name, (wall, cpu) in timed.items():
                 path = "in-process" if name == "today" else f"in-process, {name}"
                 print(_row(rig, resolution, path, wall, "", None, cpu), flush=True)
+            breakdowns.append(f"{rig} {resolution} px in-process, today's mean wall ms per set: "
+                              + ", ".join(f"{name} {ms:.1f}" for name, ms in stages.items()))
             ratios += [(rig, resolution, name, *(np.median(timed["today"][k]) / np.median(timed[name][k]) for k in (0, 1)))
                        for name in timed if name != "today"]
+    print("\n".join(breakdowns))
     for rig, resolution, name, wall, cpu in ratios:
         if name == args.baseline:
             print(f"{rig} {resolution} px in-process: p50 today / {name} = {wall:.2f}x wall, {cpu:.2f}x CPU")

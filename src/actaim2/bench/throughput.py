@@ -9,8 +9,8 @@ as the commands do. One evaluation sample and one trajectory run first, untimed:
 checkpoint's load and the renderer's shader compilation are paid once per worker, not per sample.
 
 Each run records an :class:`actaim2.profiling.Profile`: the sections the library marks
-(physics steps, rendering, object loading, depth back-projection, the object cloud, views,
-action sampling, IK, collision checks, planning, model forward, trajectory encoding) in
+(physics steps, rendering, object loading, depth back-projection, fusion, the object cloud's
+support removal, the self-filter, splatting the views, action sampling, IK, collision checks, planning, model forward, trajectory encoding) in
 exclusive wall time, and the rest of the wall time as "Python and the rest" (loop bookkeeping,
 outcome, conversions).
 Rendering is also given per observation and per camera. Hulls come from ``--hull-cache``
@@ -27,8 +27,8 @@ from pathlib import Path
 
 DEFAULT_OBJECTS = Path("../shared/partnet")
 OTHER = "Python and the rest"
-ORDER = ("physics", "render", "object load", "back-projection", "object cloud", "views", "sampling", "IK",
-         "collision checks", "planning", "model forward", "encoding")
+ORDER = ("physics", "render", "object load", "back-projection", "fusion", "object cloud", "self-filter", "splatting",
+         "sampling", "IK", "collision checks", "planning", "model forward", "encoding")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -26,6 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from actaim2.profiling import timed
+
 # sensor_msgs/PointField datatype constants -> numpy scalar type (endianness added at use).
 POINTFIELD_DTYPES: dict[int, str] = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
 UINT32 = 6
@@ -111,6 +113,7 @@ def encode(xyz: np.ndarray, rgb: np.ndarray | None = None) -> EncodedCloud:
     return EncodedCloud(tuple(fields), height, width, point_step, point_step * width, record.tobytes())
 
 
+@timed("decode")
 def decode(
     fields: list[Field] | tuple[Field, ...],
     data: bytes | bytearray | memoryview | np.ndarray,

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from actaim2.profiling import timed
+
 NO_COLOUR = np.array([128, 128, 128], dtype=np.uint8)  # mid grey for xyz-only clouds
 
 
@@ -109,6 +111,7 @@ def remove_statistical_outliers(xyz: np.ndarray, neighbors: int, std_ratio: floa
     return mask
 
 
+@timed("fusion")
 def fuse(clouds: list[CameraCloud], config: FusionConfig) -> FusedCloud:
     """World-frame fused cloud inside the workspace cube (possibly empty)."""
     center = torch.tensor(config.center, dtype=torch.float32)

@@ -49,6 +49,8 @@ import math
 import numpy as np
 import torch
 
+from actaim2.profiling import timed
+
 VIEWS: tuple[str, ...] = ("top", "front", "back", "left", "right")
 CHANNELS: tuple[str, ...] = ("r", "g", "b", "x", "y", "z", "depth", "occupancy")
 EMPTY_DEPTH = 1.0  # depth channel of an empty pixel: the cube's far face
@@ -110,6 +112,7 @@ def unproject(view: int, column, row, depth, center, half_extent: float, resolut
     return np.asarray(center, dtype=np.float64) + local @ VIEW_AXES[view].astype(np.float64)
 
 
+@timed("splatting")
 def render_views(
     xyz: np.ndarray,
     rgb: np.ndarray,

@@ -17,7 +17,6 @@ from actaim2.perception.config import PerceptionConfig
 from actaim2.perception.fusion import CameraCloud, FusedCloud, fuse
 from actaim2.perception.ortho_views import CHANNELS, render_views
 from actaim2.perception.self_filter import RobotSelfFilter
-from actaim2.profiling import timed
 
 
 class EmptyObservationError(ValueError):
@@ -61,7 +60,6 @@ class Perception:
         views = render_views(cloud.xyz, cloud.rgb, c.center, c.half_extent, c.resolution, c.splat_radius, c.splat_depth_tolerance)
         return views if c.channels == CHANNELS else views[:, self._channels]
 
-    @timed("views")
     def process(self, clouds: list[CameraCloud]) -> Observation:
         """Fuse and render (robot hidden from the views if configured): training and tools."""
         fused = self.fuse(clouds)
