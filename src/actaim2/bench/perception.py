@@ -27,6 +27,7 @@ Prints markdown tables. Other jobs on the machine inflate the numbers: say so wh
 from __future__ import annotations
 
 import argparse
+import array
 import json
 import os
 import shutil
@@ -34,7 +35,7 @@ import subprocess
 import tempfile
 import time
 import types
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable
 
@@ -178,7 +179,9 @@ def in_process(scene: Scene, config, repeats: int, baseline: str = "",
             paths[f"renderer of {splat_baseline}"] = path_of(cloud_codec, fusion, pipeline, self_filter, renderer)
         except ValueError as exc:
             print(f"renderer before splatting not timed: {exc}")
-    payloads = [(cloud_codec.encode(c.xyz, c.rgb), c.T_world_optical) for c in scene.cameras]
+    # Payloads as rclpy delivers a PointCloud2's data: a (writable) array.array of bytes.
+    payloads = [(replace(wire, data=array.array("B", wire.data)), c.T_world_optical)
+                for wire, c in ((cloud_codec.encode(c.xyz, c.rgb), c) for c in scene.cameras)]
     times: dict[str, tuple[list, list]] = {name: ([], []) for name in paths}
     profile = Profile()
     for i in range(repeats + 3):  # the first runs pay for allocations and lazy imports

@@ -59,8 +59,9 @@ def _to_world_cropped(cloud: CameraCloud, center: torch.Tensor, half_extent: flo
     over contiguous rows, 3-6x faster here than the same work on (N, 3) points.
     """
     T = torch.as_tensor(np.asarray(cloud.T_world_cloud, dtype=np.float32))
-    # Stored pictures come read-only (memory-mapped); torch wants writable buffers (a copy only then).
-    xyz = torch.from_numpy(np.require(cloud.xyz, np.float32, ['C', 'W']))
+    # Stored pictures and payloads can be read-only; torch wants writable buffers (a copy only
+    # then). A strided view into a payload is read in place: the product reads strided points.
+    xyz = torch.from_numpy(np.require(cloud.xyz, np.float32, ['W']))
     world = torch.addmm(T[:3, 3:], T[:3, :3], xyz.T)
     inside = (world - center[:, None]).abs_().amax(dim=0) <= half_extent  # NaN compares False
     kept = torch.from_numpy(np.flatnonzero(inside.numpy()))  # numpy's SIMD nonzero: 8x torch.nonzero here
