@@ -4,9 +4,13 @@
   a private ROS_DOMAIN_ID, loopback only). The probe publishes one set of views and times
   ``--calls`` calls of /sample_mode, then (a second probe) of /predict_keypose, from request to
   response: p50, p99. The node's CPU time per call (from /proc, load-independent) and its
-  resident memory (RSS) afterwards are read too. Then the same against ``policy_node`` of the
-  git revision ``--baseline`` (its sources exported from history, ``actaim2.bench.baseline``),
-  back to back on the same machine, and the ratios of the p50s.
+  resident memory (RSS) afterwards are read too. The same against ``policy_node`` of the git
+  revision ``--baseline`` (its sources exported from history, ``actaim2.bench.baseline``),
+  alternating with today's for ``--rounds`` rounds (load drifts hit both alike), and the ratios
+  of the p50s.
+* In-process: :class:`PolicyModel` of today and of ``--baseline`` (its predictor and serving
+  modules read from git, the same weights) answer the same requests in turn in this process,
+  one torch thread: wall and CPU p50 per call, without DDS.
 * Episodes: ``actaim2 launch sim_panda_ring5`` (SAPIEN, ring5 at 128 px, fusion, control, policy)
   and ``episode_runner``; wall time per episode from its JSONL records.
 
@@ -46,7 +50,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--episodes", type=int, default=3, help="sim-loop episodes to time (0: skip)")
     parser.add_argument("--workdir", type=Path, default=Path("runs/bench_services"), help="logs, records, temporary checkpoint")
     parser.add_argument("--baseline", default=BASELINE_REVISION,
-                        help="git revision whose policy_node is timed after today's ('' = skip)")
+                        help="git revision whose policy_node and PolicyModel are timed beside today's ('' = skip)")
+    parser.add_argument("--rounds", type=int, default=2, help="alternating rounds of today's and the baseline's node")
 
 
 def untrained_checkpoint(stem: Path, perception) -> Path:
@@ -86,6 +91,19 @@ def _rss_mb(pid: int) -> float:
         if line.startswith("VmRSS:"):
             return int(line.split()[1]) / 1024.0
     return float("nan")
+
+
+def _pool(pooled: dict, result: dict) -> None:
+    """Add one round's round trips (lists: appended; CPU per call and RSS: averaged over rounds) to ``pooled``."""
+    rounds = pooled.get("rounds", 0)
+    for key, value in result.items():
+        if isinstance(value, list):
+            pooled.setdefault(key, []).extend(value)
+        elif isinstance(value, float):
+            pooled[key] = (pooled.get(key, 0.0) * rounds + value) / (rounds + 1)
+        else:
+            pooled[key] = value
+    pooled["rounds"] = rounds + 1
 
 
 def round_trips(stem: Path, perception_arg: str, perception, args: argparse.Namespace, workdir: Path,
@@ -155,6 +173,45 @@ def episode_times(stem: Path | None, perception_arg: str, args: argparse.Namespa
             "phases": [len(r["phases"]) for r in rows]}
 
 
+def in_process(stem: Path, perception, calls: int, baseline: str) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """{"<service>" / "<service>, <baseline>": (wall ms, CPU ms)} of ``calls`` alternating in-process calls."""
+    import time
+
+    import torch
+
+    from actaim2.bench.baseline import modules_at
+    from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, PolicyModel
+    from actaim2.policy.views import Views
+
+    torch.set_num_threads(1)
+    models = {"": PolicyModel.load(stem, perception, "cpu")}
+    if baseline:
+        old = modules_at(baseline, ["actaim2.models.predictor", "actaim2.policy.inference"])
+        model = old["actaim2.policy.inference"].PolicyModel.load(stem, perception, "cpu")
+        if model.predictor is not None:  # the checkpoint loader builds today's class: the same weights in the old one
+            predictor = old["actaim2.models.predictor"].ActionPredictor(model.predictor.config)
+            predictor.load_state_dict(model.predictor.state_dict())
+            model.predictor = predictor.eval()
+        models[f", {baseline}"] = model
+    data = np.random.default_rng(0).uniform(0.0, 1.0, (5, len(perception.channels), perception.resolution,
+                                                          perception.resolution)).astype(np.float32)
+    views = Views(0, data)
+    for model in models.values():
+        model.warm_up()
+    eps = models[""].sample_mode(views, 0, 0).eps
+    requests = {"sample_mode": lambda m, k: m.sample_mode(views, k % max(m.clusters, 1), k),
+                "predict_keypose": lambda m, k: m.predict_keypose(views, eps, k % 4, k % 4 == 3, KEYPOSE_ALTERNATIVES)}
+    times = {f"{name}{suffix}": ([], []) for name in requests for suffix in models}
+    for k in range(calls):
+        for name, call in requests.items():
+            for suffix, model in list(models.items())[:: 1 if k % 2 else -1]:  # each goes first in turn (caches)
+                wall, cpu = time.perf_counter(), time.process_time()
+                call(model, k)
+                times[f"{name}{suffix}"][0].append((time.perf_counter() - wall) * 1e3)
+                times[f"{name}{suffix}"][1].append((time.process_time() - cpu) * 1e3)
+    return {key: (np.array(wall), np.array(cpu)) for key, (wall, cpu) in times.items()}
+
+
 def _ms_row(name: str, values: list[float], cpu_ms: float, target: float | None) -> str:
     p50, p99 = np.percentile(values, 50), np.percentile(values, 99)
     verdict = "" if target is None else f"p50 <= {target:g} ms: {'met' if p50 <= target else 'MISSED'}"
@@ -182,21 +239,30 @@ def main(args: argparse.Namespace) -> int:
             return 2
         stem = untrained_checkpoint(workdir / "untrained_cpu_default", perception)
         print(f"checkpoint: none committed yet ({exc}); timing an UNTRAINED checkpoint of the CPU default sizes ({stem})")
-    result = round_trips(stem, args.perception, perception, args, workdir)
+    result, baseline = {}, {} if args.baseline else None
+    with tempfile.TemporaryDirectory(prefix="bench_services_") as tmp:
+        tree = export_tree(args.baseline, Path(tmp)) if args.baseline else None
+        (workdir / "baseline").mkdir(exist_ok=True)
+        for _ in range(max(args.rounds, 1) if args.baseline else 1):
+            _pool(result, round_trips(stem, args.perception, perception, args, workdir))
+            if tree is not None:
+                _pool(baseline, round_trips(stem, args.perception, perception, args, workdir / "baseline", tree))
     print(f"served: {result['served']}\n")
-    baseline = None
-    if args.baseline:
-        with tempfile.TemporaryDirectory(prefix="bench_services_") as tmp:
-            tree = export_tree(args.baseline, Path(tmp))
-            (workdir / "baseline").mkdir(exist_ok=True)
-            baseline = round_trips(stem, args.perception, perception, args, workdir / "baseline", tree)
-    rows = ["| measurement | p50 | p99 | node CPU per call | n | target |", "|---|---|---|---|---|---|"]
+    timed = in_process(stem, perception, args.calls, args.baseline)
+    rows = ["| measurement | p50 | p99 | CPU per call | n | target |", "|---|---|---|---|---|---|"]
+    for key, (wall, cpu) in timed.items():
+        rows.append(f"| in-process {key} | {np.percentile(wall, 50):.1f} ms | {np.percentile(wall, 99):.1f} ms | "
+                    f"{np.percentile(cpu, 50):.1f} ms | {len(wall)} | |")
     for name in ("sample_mode", "predict_keypose"):
         rows.append(_ms_row(f"/{name}", result[name], result[f"{name}_cpu_ms"], TARGETS_MS[name]))
         if baseline is not None:
             rows.append(_ms_row(f"/{name}, policy_node of {args.baseline}", baseline[name], baseline[f"{name}_cpu_ms"], None))
     rows.append(f"| policy_node RSS after the calls | {result['rss_mb']:.0f} MB | | | | |")
     if baseline is not None:
+        inside = ", ".join(f"{name} {np.median(timed[name][0]) / np.median(timed[f'{name}, {args.baseline}'][0]):.2f}x "
+                           f"(CPU {np.median(timed[name][1]) / np.median(timed[f'{name}, {args.baseline}'][1]):.2f}x)"
+                           for name in ("sample_mode", "predict_keypose"))
+        print(f"in-process p50 today / PolicyModel of {args.baseline}: {inside}")
         ratios = ", ".join(f"/{name} {np.median(result[name]) / np.median(baseline[name]):.2f}x "
                            f"(node CPU {result[f'{name}_cpu_ms'] / baseline[f'{name}_cpu_ms']:.2f}x)"
                            for name in ("sample_mode", "predict_keypose"))
