@@ -1,4 +1,5 @@
 """actaim2.profiling: exclusive section times while a profile records, nothing otherwise."""
+
 import time
 
 from actaim2.profiling import Profile, recording, section, timed

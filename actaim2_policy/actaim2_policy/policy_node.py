@@ -113,7 +113,8 @@ class PolicyNode(Node):
         if self._model is None:
             self.get_logger().error(f"{self._load_error}; every request is answered success=false with this reason")
         else:
-            self.get_logger().info(f"policy_node ready: {self._description}; warm-up {1000 * warm:.0f} ms; views: "
+            self.get_logger().info(f"policy_node ready: {self._description}; "
+                                   f"warm-up {1000 * warm:.0f} ms; views: "
                                    f"selector {self._topics['selector']}, predictor {self._topics['predictor']}")
 
     # -- views ------------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""Named wall-time sections, recorded only while a :class:`Profile` records (``actaim2 bench throughput``).
+"""Named wall-time sections, recorded only while a :class:`Profile` records (``bench throughput``).
 
 ``with section("physics"):`` (or ``@timed("physics")`` on a function) adds the wall time of that
 work to the recording profile under its name. Sections nest: a section's time counts in the
@@ -6,6 +6,7 @@ innermost one only (exclusive time), so the sections of one profile never overla
 wall time is their sum plus what no section covered. Without a recording profile, ``section``
 returns one shared do-nothing context and ``timed`` adds one global read to a call.
 """
+
 from __future__ import annotations
 
 import functools
@@ -22,7 +23,9 @@ class Profile:
     def __init__(self) -> None:
         self.seconds: dict[str, float] = {}
         self.calls: dict[str, int] = {}
-        self._stack: list[list] = []  # open sections: [name, start, seconds spent in nested sections]
+        self._stack: list[
+            list
+        ] = []  # open sections: [name, start, seconds spent in nested sections]
 
     def _enter(self, name: str) -> None:
         self._stack.append([name, time.perf_counter(), 0.0])
@@ -65,13 +68,14 @@ _recording: Profile | None = None
 
 
 def section(name: str) -> _Section | _Off:
-    """A context that times its block under ``name`` in the recording profile (none: does nothing)."""
+    """A context that times its block under ``name`` in the recording profile (none: a no-op)."""
     profile = _recording
     return _OFF if profile is None else _Section(profile, name)
 
 
 def timed(name: str) -> Callable[[F], F]:
     """Decorator: every call of the function is a :func:`section` ``name``."""
+
     def wrap(function: F) -> F:
         @functools.wraps(function)
         def inner(*args, **kwargs):
@@ -80,7 +84,9 @@ def timed(name: str) -> Callable[[F], F]:
                 return function(*args, **kwargs)
             with _Section(profile, name):
                 return function(*args, **kwargs)
+
         return inner  # type: ignore[return-value]
+
     return wrap
 
 

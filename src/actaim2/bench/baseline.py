@@ -10,6 +10,7 @@ Nothing of the old code stays in the tree: it is read from this checkout's git h
   node of that revision runs as its own process (``bench perception``'s and ``bench services``'
   node halves).
 """
+
 from __future__ import annotations
 
 import io
@@ -26,8 +27,11 @@ SOURCES = ("src", "actaim2_perception", "actaim2_policy")  # what export_tree ex
 
 
 def source_at(revision: str, path: str) -> str:
-    """The text of ``path`` (relative to the repository) at ``revision``; ValueError when git cannot show it."""
-    shown = subprocess.run(["git", "-C", str(REPO), "show", f"{revision}:{path}"], capture_output=True, text=True)
+    """The text of ``path`` (relative to the repository) at ``revision``; ValueError when git
+    cannot show it."""
+    shown = subprocess.run(
+        ["git", "-C", str(REPO), "show", f"{revision}:{path}"], capture_output=True, text=True
+    )
     if shown.returncode != 0:
         raise ValueError(f"git show {revision}:{path} failed: {shown.stderr.strip()}")
     return shown.stdout
@@ -43,8 +47,11 @@ def modules_at(revision: str, names: list[str]) -> dict[str, types.ModuleType]:
             path = f"src/{name.replace('.', '/')}.py"
             module = types.ModuleType(name)
             module.__file__ = f"{revision}:{path}"
-            sys.modules[name] = module  # the later modules' imports of it, and dataclasses, find it
-            exec(compile(source_at(revision, path), module.__file__, "exec"), module.__dict__)  # noqa: S102 - our history
+            sys.modules[name] = (
+                module  # the later modules' imports of it, and dataclasses, find it
+            )
+            code = compile(source_at(revision, path), module.__file__, "exec")
+            exec(code, module.__dict__)  # noqa: S102 - our own history
             loaded[name] = module
     finally:
         for name, module in saved.items():
@@ -57,8 +64,10 @@ def modules_at(revision: str, names: list[str]) -> dict[str, types.ModuleType]:
 
 def export_tree(revision: str, folder: Path) -> Path:
     """The revision's :data:`SOURCES` extracted into ``folder``; returns ``folder``."""
-    archive = subprocess.run(["git", "-C", str(REPO), "archive", "--format=tar", revision, *SOURCES],
-                             capture_output=True)
+    archive = subprocess.run(
+        ["git", "-C", str(REPO), "archive", "--format=tar", revision, *SOURCES],
+        capture_output=True,
+    )
     if archive.returncode != 0:
         raise ValueError(f"git archive {revision} failed: {archive.stderr.decode().strip()}")
     with tarfile.open(fileobj=io.BytesIO(archive.stdout)) as tar:
@@ -69,8 +78,13 @@ def export_tree(revision: str, folder: Path) -> Path:
 def python_path(tree: Path) -> str:
     """``PYTHONPATH`` that imports an exported tree's library and node packages before today's
     (the editable install's finder comes after ``sys.path`` entries)."""
-    return os.pathsep.join([str(tree / "src"), *(str(tree / p) for p in SOURCES[1:]),
-                            os.environ.get("PYTHONPATH", "")])
+    return os.pathsep.join(
+        [
+            str(tree / "src"),
+            *(str(tree / p) for p in SOURCES[1:]),
+            os.environ.get("PYTHONPATH", ""),
+        ]
+    )
 
 
 def node_command(tree: Path, package: str, executable: str, ros_args: list[str]) -> list[str]:

@@ -24,6 +24,7 @@ views, as in deployment.
 
 Prints markdown tables. Other jobs on the machine inflate the numbers: say so when quoting them.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -34,22 +35,36 @@ import shutil
 import subprocess
 import tempfile
 import time
-import types
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
-from actaim2.bench.baseline import BASELINE_REVISION, export_tree, modules_at, node_command, python_path
+from actaim2.bench.baseline import (
+    BASELINE_REVISION,
+    export_tree,
+    modules_at,
+    node_command,
+    python_path,
+)
 from actaim2.bench.processes import private_ros_env, ros_run_command, start_logged, stop_group
 
 SPLAT_BASELINE = "6bab265"  # the last ortho_views.py with one pixel per point (before splatting)
-# The modules of the perception path, each after the ones it imports (a revision's path, in-process).
-PATH_MODULES = ["actaim2.perception.cloud_codec", "actaim2.perception.fusion", "actaim2.perception.self_filter",
-                "actaim2.perception.ortho_views", "actaim2.perception.pipeline"]
-SPLAT_COST_LIMIT = ("ring5", 128, 1.2)  # ring5 -> 128 px p50 within 1.2x of the renderer before splatting
-TARGETS = {  # in-process p50 (ms) for 128 px views; node output rate (Hz) at its input rate (NODE_RATES)
+# The modules of the perception path, each after the ones it imports (a revision's, in-process).
+PATH_MODULES = [
+    "actaim2.perception.cloud_codec",
+    "actaim2.perception.fusion",
+    "actaim2.perception.self_filter",
+    "actaim2.perception.ortho_views",
+    "actaim2.perception.pipeline",
+]
+SPLAT_COST_LIMIT = (
+    "ring5",
+    128,
+    1.2,
+)  # ring5 -> 128 px p50 within 1.2x of the renderer before splatting
+# In-process p50 (ms) for 128 px views; node output rate (Hz) at its input rate (NODE_RATES).
+TARGETS = {
     ("ring5", "in-process", 128): ("p50 <= 12 ms", lambda p50, hz: p50 <= 12.0),
     ("ring5", "node"): ("15 Hz", lambda p50, hz: hz >= 15.0 * 0.95),
     ("azure_kinect", "node"): ("30 Hz", lambda p50, hz: hz >= 30.0 * 0.95),
@@ -60,17 +75,36 @@ TARGET = np.array([0.7, 0.0, 0.25])  # the object the cameras look at (world)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--rigs", nargs="+", default=["ring5", "azure_kinect"], choices=["ring5", "azure_kinect"])
+    parser.add_argument(
+        "--rigs", nargs="+", default=["ring5", "azure_kinect"], choices=["ring5", "azure_kinect"]
+    )
     parser.add_argument("--resolutions", nargs="+", type=int, default=[128, 224])
-    parser.add_argument("--repeats", type=int, default=40, help="in-process repetitions per configuration")
-    parser.add_argument("--duration", type=float, default=8.0, help="s of node measurement per rate")
-    parser.add_argument("--threads", type=int, default=1, help="torch CPU threads (the node's default is 1)")
+    parser.add_argument(
+        "--repeats", type=int, default=40, help="in-process repetitions per configuration"
+    )
+    parser.add_argument(
+        "--duration", type=float, default=8.0, help="s of node measurement per rate"
+    )
+    parser.add_argument(
+        "--threads", type=int, default=1, help="torch CPU threads (the node's default is 1)"
+    )
     parser.add_argument("--skip-node", action="store_true", help="in-process numbers only")
-    parser.add_argument("--fastdds-profile", type=Path, help="Fast DDS XML profile for both processes (FASTRTPS_DEFAULT_PROFILES_FILE)")
-    parser.add_argument("--baseline", default=BASELINE_REVISION,
-                        help="git revision whose perception path (in-process and fusion_node) is timed beside today's ('' = skip)")
-    parser.add_argument("--splat-baseline", default=SPLAT_BASELINE,
-                        help="git revision whose ortho_views.render_views is timed in today's path ('' = skip)")
+    parser.add_argument(
+        "--fastdds-profile",
+        type=Path,
+        help="Fast DDS XML profile for both processes (FASTRTPS_DEFAULT_PROFILES_FILE)",
+    )
+    parser.add_argument(
+        "--baseline",
+        default=BASELINE_REVISION,
+        help="git revision whose perception path (in-process and fusion_node) is timed beside "
+        "today's ('' = skip)",
+    )
+    parser.add_argument(
+        "--splat-baseline",
+        default=SPLAT_BASELINE,
+        help="git revision whose ortho_views.render_views is timed in today's path ('' = skip)",
+    )
 
 
 @dataclass(frozen=True)
@@ -106,8 +140,22 @@ def build_scene(rig: str) -> Scene:
     scene = RaycastScene(meshes)
     cameras = []
     for cam in make_rig(rig, TARGET):
-        xyz, rgb = scene.capture(cam.T_world_optical, cam.width, cam.height, np.rad2deg(2 * np.arctan(cam.width / (2 * cam.fx))))
-        cameras.append(SceneCamera(cam.topic, cam.frame_id, xyz, None if rig == "azure_kinect" else rgb, cam.tf_chain, cam.T_world_optical))
+        xyz, rgb = scene.capture(
+            cam.T_world_optical,
+            cam.width,
+            cam.height,
+            np.rad2deg(2 * np.arctan(cam.width / (2 * cam.fx))),
+        )
+        cameras.append(
+            SceneCamera(
+                cam.topic,
+                cam.frame_id,
+                xyz,
+                None if rig == "azure_kinect" else rgb,
+                cam.tf_chain,
+                cam.T_world_optical,
+            )
+        )
     return Scene(rig, cameras, joints)
 
 
@@ -130,8 +178,9 @@ def save_scene(scene: Scene, path: Path) -> None:
     np.savez(path, **arrays)
 
 
-def in_process(scene: Scene, config, repeats: int, baseline: str = "",
-               splat_baseline: str = "") -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], dict[str, float]]:
+def in_process(
+    scene: Scene, config, repeats: int, baseline: str = "", splat_baseline: str = ""
+) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], dict[str, float]]:
     """Wall and CPU milliseconds per set: payload bytes -> views, robot removed from the views.
 
     Returns {"today": (wall, cpu)} and, given revisions, {"<baseline>": ..., "renderer of
@@ -147,45 +196,60 @@ def in_process(scene: Scene, config, repeats: int, baseline: str = "",
     from actaim2.robots import load_robot_spec
 
     def path_of(codec, fusion_module, pipeline_module, filter_module, render=None):
-        """A payloads -> views function through the given modules (``render``: another renderer)."""
-        robot_filter = filter_module.RobotSelfFilter(load_robot_spec("panda"), config.self_filter_margin)
+        """A payloads -> views function through these modules (``render``: another renderer)."""
+        robot_filter = filter_module.RobotSelfFilter(
+            load_robot_spec("panda"), config.self_filter_margin
+        )
         robot_filter.set_joint_positions(list(scene.joints), list(scene.joints.values()))
         perception = pipeline_module.Perception(config, robot_filter)
 
         def run(payloads) -> None:
             clouds = []
             for wire, T in payloads:
-                decoded = codec.decode(wire.fields, wire.data, wire.height, wire.width, wire.point_step, wire.row_step)
+                decoded = codec.decode(
+                    wire.fields, wire.data, wire.height, wire.width, wire.point_step, wire.row_step
+                )
                 clouds.append(fusion_module.CameraCloud(decoded.xyz, decoded.rgb, T))
             if render is None:
                 perception.process(clouds)
             else:
                 shown = perception.without_robot(perception.fuse(clouds))
                 render(shown.xyz, shown.rgb, config.center, config.half_extent, config.resolution)
+
         return run
 
     paths = {"today": path_of(cloud_codec, fusion, pipeline, self_filter)}
     if baseline:
         try:
             old = modules_at(baseline, PATH_MODULES)
-            paths[baseline] = path_of(*(old[f"actaim2.perception.{m}"]
-                                        for m in ("cloud_codec", "fusion", "pipeline", "self_filter")))
+            paths[baseline] = path_of(
+                *(
+                    old[f"actaim2.perception.{m}"]
+                    for m in ("cloud_codec", "fusion", "pipeline", "self_filter")
+                )
+            )
         except ValueError as exc:
             print(f"perception path of {baseline} not timed: {exc}")
     if splat_baseline:
         try:
             module = "actaim2.perception.ortho_views"
             renderer = modules_at(splat_baseline, [module])[module].render_views
-            paths[f"renderer of {splat_baseline}"] = path_of(cloud_codec, fusion, pipeline, self_filter, renderer)
+            paths[f"renderer of {splat_baseline}"] = path_of(
+                cloud_codec, fusion, pipeline, self_filter, renderer
+            )
         except ValueError as exc:
             print(f"renderer before splatting not timed: {exc}")
     # Payloads as rclpy delivers a PointCloud2's data: a (writable) array.array of bytes.
-    payloads = [(replace(wire, data=array.array("B", wire.data)), c.T_world_optical)
-                for wire, c in ((cloud_codec.encode(c.xyz, c.rgb), c) for c in scene.cameras)]
+    payloads = [
+        (replace(wire, data=array.array("B", wire.data)), c.T_world_optical)
+        for wire, c in ((cloud_codec.encode(c.xyz, c.rgb), c) for c in scene.cameras)
+    ]
     times: dict[str, tuple[list, list]] = {name: ([], []) for name in paths}
     profile = Profile()
     for i in range(repeats + 3):  # the first runs pay for allocations and lazy imports
-        for name, run in list(paths.items())[:: 1 if i % 2 else -1]:  # each goes first in turn (caches)
+        for name, run in list(paths.items())[
+            :: 1 if i % 2 else -1
+        ]:  # each goes first in turn (caches)
             with recording(profile if name == "today" and i >= 3 else Profile()):
                 start, start_cpu = time.perf_counter(), time.process_time()
                 run(payloads)
@@ -198,15 +262,24 @@ def in_process(scene: Scene, config, repeats: int, baseline: str = "",
     return {name: (np.array(wall), np.array(cpu)) for name, (wall, cpu) in times.items()}, stages
 
 
-def _ros_run(executable: str, params: dict, env: dict[str, str], log: Path, **popen) -> subprocess.Popen:
-    return start_logged(ros_run_command("actaim2_perception", executable, params), env, log, **popen)
+def _ros_run(
+    executable: str, params: dict, env: dict[str, str], log: Path, **popen
+) -> subprocess.Popen:
+    return start_logged(
+        ros_run_command("actaim2_perception", executable, params), env, log, **popen
+    )
 
 
 def through_node(
-    scene: Scene, config, rates: list[float], duration: float, workdir: Path, fastdds_profile: Path | None,
+    scene: Scene,
+    config,
+    rates: list[float],
+    duration: float,
+    workdir: Path,
+    fastdds_profile: Path | None,
     tree: Path | None = None,
 ) -> list[dict]:
-    """One fusion_node with ``config`` (today's, or the one of an exported ``tree``); one latency_probe
+    """One fusion_node with ``config`` (today's, or the one of an exported ``tree``); one probe
     run per input rate. Returns the probes' JSON results."""
     from actaim2.perception.config import save_perception_config
 
@@ -216,30 +289,54 @@ def through_node(
     save_scene(scene, scene_file)
     config_file = workdir / f"perception_{scene.rig}_{config.resolution}.yaml"
     save_perception_config(config, config_file)
-    command = ros_run_command("actaim2_perception", "fusion_node",
-                              {"cloud_topics": [c.topic for c in scene.cameras], "perception_config": str(config_file)})
+    command = ros_run_command(
+        "actaim2_perception",
+        "fusion_node",
+        {"cloud_topics": [c.topic for c in scene.cameras], "perception_config": str(config_file)},
+    )
     if tree is not None:
         command = node_command(tree, "actaim2_perception", "fusion_node", command[4:])
-    log = workdir / f"fusion_node_{scene.rig}_{config.resolution}{'' if tree is None else '_baseline'}.log"
+    log = (
+        workdir
+        / f"fusion_node_{scene.rig}_{config.resolution}{'' if tree is None else '_baseline'}.log"
+    )
     node = start_logged(command, node_env, log, stdout=subprocess.DEVNULL)
     results = []
     try:
         for rate in rates:
             probe = _ros_run(
-                "latency_probe", {"scene_file": str(scene_file), "rate": rate, "duration": duration},
-                env, workdir / f"probe_{scene.rig}_{config.resolution}_{rate:g}.log", stdout=subprocess.PIPE, text=True,
+                "latency_probe",
+                {"scene_file": str(scene_file), "rate": rate, "duration": duration},
+                env,
+                workdir / f"probe_{scene.rig}_{config.resolution}_{rate:g}.log",
+                stdout=subprocess.PIPE,
+                text=True,
             )
             out, _ = probe.communicate(timeout=duration + 120)
             lines = [line for line in out.splitlines() if line.startswith("{")]
-            result = json.loads(lines[-1]) if lines else {"error": f"probe exited {probe.returncode} without a result"}
+            result = (
+                json.loads(lines[-1])
+                if lines
+                else {"error": f"probe exited {probe.returncode} without a result"}
+            )
             results.append(dict(result, rate=rate))
     finally:
         stop_group(node, timeout=10.0)
     return results
 
 
-def _row(rig: str, resolution: int, path: str, latencies: np.ndarray, rate_in: str, rate_out: float | None, cpu: np.ndarray | None = None) -> str:
-    p50, p99 = (np.percentile(latencies, [50, 99]) if len(latencies) else (float("nan"), float("nan")))
+def _row(
+    rig: str,
+    resolution: int,
+    path: str,
+    latencies: np.ndarray,
+    rate_in: str,
+    rate_out: float | None,
+    cpu: np.ndarray | None = None,
+) -> str:
+    p50, p99 = (
+        np.percentile(latencies, [50, 99]) if len(latencies) else (float("nan"), float("nan"))
+    )
     key = (rig, path, resolution) if path == "in-process" else (rig, path)
     target, check = TARGETS.get(key, ("", None))
     verdict = ""
@@ -264,29 +361,58 @@ def main(args: argparse.Namespace) -> int:
         f"freed memory kept in the heap (as in fusion_node): {kept}, "
         f"Fast DDS profile: {args.fastdds_profile or os.environ.get('FASTRTPS_DEFAULT_PROFILES_FILE') or 'default'}"
     )
-    print("\n| rig | views px | path | input Hz | output Hz | p50 ms | p99 ms | CPU p50 ms | n | target |")
+    print(
+        "\n| rig | views px | path | input Hz | output Hz | p50 ms | p99 ms | CPU p50 ms | n "
+        "| target |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|")
     scenes = {rig: build_scene(rig) for rig in args.rigs}
-    configs = {(rig, r): load_perception_config(rig).replace(resolution=r) for rig in args.rigs for r in args.resolutions}
+    configs = {
+        (rig, r): load_perception_config(rig).replace(resolution=r)
+        for rig in args.rigs
+        for r in args.resolutions
+    }
     ratios, breakdowns = [], []
     for rig, scene in scenes.items():
         for resolution in args.resolutions:
-            timed, stages = in_process(scene, configs[rig, resolution], args.repeats, args.baseline, args.splat_baseline)
+            timed, stages = in_process(
+                scene, configs[rig, resolution], args.repeats, args.baseline, args.splat_baseline
+            )
             for name, (wall, cpu) in timed.items():
                 path = "in-process" if name == "today" else f"in-process, {name}"
                 print(_row(rig, resolution, path, wall, "", None, cpu), flush=True)
-            breakdowns.append(f"{rig} {resolution} px in-process, today's mean wall ms per set: "
-                              + ", ".join(f"{name} {ms:.1f}" for name, ms in stages.items()))
-            ratios += [(rig, resolution, name, *(np.median(timed["today"][k]) / np.median(timed[name][k]) for k in (0, 1)))
-                       for name in timed if name != "today"]
+            breakdowns.append(
+                f"{rig} {resolution} px in-process, today's mean wall ms per set: "
+                + ", ".join(f"{name} {ms:.1f}" for name, ms in stages.items())
+            )
+            ratios += [
+                (
+                    rig,
+                    resolution,
+                    name,
+                    *(np.median(timed["today"][k]) / np.median(timed[name][k]) for k in (0, 1)),
+                )
+                for name in timed
+                if name != "today"
+            ]
     print("\n".join(breakdowns))
     for rig, resolution, name, wall, cpu in ratios:
         if name == args.baseline:
-            print(f"{rig} {resolution} px in-process: p50 today / {name} = {wall:.2f}x wall, {cpu:.2f}x CPU")
+            print(
+                f"{rig} {resolution} px in-process: p50 today / {name} = {wall:.2f}x wall, "
+                f"{cpu:.2f}x CPU"
+            )
             continue
         limit = SPLAT_COST_LIMIT[2] if (rig, resolution) == SPLAT_COST_LIMIT[:2] else None
-        verdict = f" (target <= {limit}x: {'met' if cpu <= limit else 'MISSED'} on CPU time)" if limit else ""
-        print(f"splatting cost, {rig} {resolution} px: p50 today / {name} = {wall:.2f}x wall, {cpu:.2f}x CPU{verdict}")
+        verdict = (
+            f" (target <= {limit}x: {'met' if cpu <= limit else 'MISSED'} on CPU time)"
+            if limit
+            else ""
+        )
+        print(
+            f"splatting cost, {rig} {resolution} px: p50 today / {name} = {wall:.2f}x wall, "
+            f"{cpu:.2f}x CPU{verdict}"
+        )
     if args.skip_node:
         return 0
     if shutil.which("ros2") is None:
@@ -300,13 +426,39 @@ def main(args: argparse.Namespace) -> int:
             for resolution in args.resolutions:
                 rates = sorted({NODE_RATES[rig], CAPACITY_RATE})
                 for path, tree in trees.items():
-                    for result in through_node(scene, configs[rig, resolution], rates, args.duration, Path(tmp),
-                                               args.fastdds_profile, tree):
+                    for result in through_node(
+                        scene,
+                        configs[rig, resolution],
+                        rates,
+                        args.duration,
+                        Path(tmp),
+                        args.fastdds_profile,
+                        tree,
+                    ):
                         if "error" in result:
-                            print(f"| {rig} | {resolution} | {path} | {result['rate']:g} | error: {result['error']} | | | | | |")
+                            print(
+                                f"| {rig} | {resolution} | {path} | {result['rate']:g} "
+                                f"| error: {result['error']} | | | | | |"
+                            )
                             continue
-                        rate_out = result["received"] / result["seconds"] if result["seconds"] > 0 else 0.0
-                        print(_row(rig, resolution, path, np.array(result["latencies_ms"]), f"{result['rate']:g}", rate_out),
-                              flush=True)
-    print(f"\nload average at the end: {os.getloadavg()[0]:.2f} (other jobs on the machine inflate these numbers)")
+                        rate_out = (
+                            result["received"] / result["seconds"]
+                            if result["seconds"] > 0
+                            else 0.0
+                        )
+                        print(
+                            _row(
+                                rig,
+                                resolution,
+                                path,
+                                np.array(result["latencies_ms"]),
+                                f"{result['rate']:g}",
+                                rate_out,
+                            ),
+                            flush=True,
+                        )
+    print(
+        f"\nload average at the end: {os.getloadavg()[0]:.2f} "
+        "(other jobs on the machine inflate these numbers)"
+    )
     return 0

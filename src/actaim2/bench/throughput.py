@@ -1,4 +1,4 @@
-"""`actaim2 bench throughput`: where the time of an evaluation sample and a collection trajectory goes.
+"""`actaim2 bench throughput`: where evaluation samples' and collection trajectories' time goes.
 
 Real PartNet-Mobility objects of one split (default ``val`` of ``<objects>/splits.yaml``), in
 one process on one torch thread, through the code the commands run: evaluation samples by
@@ -10,13 +10,14 @@ checkpoint's load and the renderer's shader compilation are paid once per worker
 
 Each run records an :class:`actaim2.profiling.Profile`: the sections the library marks
 (physics steps, rendering, object loading, depth back-projection, fusion, the object cloud's
-support removal, the self-filter, splatting the views, action sampling, IK, collision checks, planning, model forward, trajectory encoding) in
-exclusive wall time, and the rest of the wall time as "Python and the rest" (loop bookkeeping,
-outcome, conversions).
-Rendering is also given per observation and per camera. Hulls come from ``--hull-cache``
+support removal, the self-filter, splatting the views, action sampling, IK, collision checks,
+planning, model forward, trajectory encoding) in exclusive wall time, and the rest of the wall
+time as "Python and the rest" (loop bookkeeping, outcome, conversions). Rendering is also
+given per observation and per camera. Hulls come from ``--hull-cache``
 (default: the default cache); a collision mesh without an entry loads as one hull, and the
 output says how many meshes of the objects have none.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -27,25 +28,51 @@ from pathlib import Path
 
 DEFAULT_OBJECTS = Path("../shared/partnet")
 OTHER = "Python and the rest"
-ORDER = ("physics", "render", "object load", "back-projection", "fusion", "object cloud", "self-filter", "splatting",
-         "sampling", "IK", "collision checks", "planning", "model forward", "encoding")
+ORDER = (
+    "physics",
+    "render",
+    "object load",
+    "back-projection",
+    "fusion",
+    "object cloud",
+    "self-filter",
+    "splatting",
+    "sampling",
+    "IK",
+    "collision checks",
+    "planning",
+    "model forward",
+    "encoding",
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--objects", type=Path, default=DEFAULT_OBJECTS, help="PartNet-Mobility folders")
-    parser.add_argument("--splits", type=Path, help="object splits YAML (default: <objects>/splits.yaml)")
+    parser.add_argument(
+        "--objects", type=Path, default=DEFAULT_OBJECTS, help="PartNet-Mobility folders"
+    )
+    parser.add_argument(
+        "--splits", type=Path, help="object splits YAML (default: <objects>/splits.yaml)"
+    )
     parser.add_argument("--split", default="val", help="the split whose objects are used")
     parser.add_argument("--samples", type=int, default=10, help="evaluation samples (0: skip)")
-    parser.add_argument("--trajectories", type=int, default=10, help="collection trajectories (0: skip)")
-    parser.add_argument("--checkpoint", default="actaim2_ring5", help="policy checkpoint (name or stem)")
-    parser.add_argument("--hull-cache", type=Path, help="hull cache folder (default: the default cache)")
+    parser.add_argument(
+        "--trajectories", type=int, default=10, help="collection trajectories (0: skip)"
+    )
+    parser.add_argument(
+        "--checkpoint", default="actaim2_ring5", help="policy checkpoint (name or stem)"
+    )
+    parser.add_argument(
+        "--hull-cache", type=Path, help="hull cache folder (default: the default cache)"
+    )
     parser.add_argument("--render-path", default="auto", choices=["auto", "sapien", "raycast"])
 
 
 def split_folders(objects: Path, splits: Path, split: str) -> list[Path]:
     import yaml
 
-    names = sorted(str(name) for name, s in (yaml.safe_load(splits.read_text()) or {}).items() if s == split)
+    names = sorted(
+        str(name) for name, s in (yaml.safe_load(splits.read_text()) or {}).items() if s == split
+    )
     folders = [objects / name for name in names if (objects / name / "mobility.urdf").is_file()]
     if not folders:
         raise ValueError(f"no object of split '{split}' ({splits}) under {objects}")
@@ -60,7 +87,9 @@ def hull_coverage(folders: list[Path], cache) -> tuple[int, int]:
     return sum(cache.lookup(m) is not None for m in meshes), len(meshes)
 
 
-def evaluation_runs(folders: list[Path], args: argparse.Namespace, render_path: str) -> tuple[list, dict]:
+def evaluation_runs(
+    folders: list[Path], args: argparse.Namespace, render_path: str
+) -> tuple[list, dict]:
     """(one Profile per timed sample with its wall seconds, counts) of ``args.samples`` samples."""
     from actaim2.eval.checkpoints import perception_of
     from actaim2.eval.evalset import EvalObject
@@ -72,13 +101,21 @@ def evaluation_runs(folders: list[Path], args: argparse.Namespace, render_path: 
 
     stem = resolve_checkpoint(args.checkpoint, installed_folders())
     perception = perception_of(stem)
-    setup = WorkerSetup("panda", perception.rig, render_path, tuple(perception.center), float(perception.half_extent),
-                        {"actaim2": str(stem)})
+    setup = WorkerSetup(
+        "panda",
+        perception.rig,
+        render_path,
+        tuple(perception.center),
+        float(perception.half_extent),
+        {"actaim2": str(stem)},
+    )
     worker = EvalWorker(setup)
     worker.env.hulls = HullCache(args.hull_cache)
     clusters = worker.source("actaim2").model.clusters
-    objects = [EvalObject(args.split, str(read_meta(f).get("model_cat", "unknown")), -1, str(f.resolve()))
-               for f in folders]
+    objects = [
+        EvalObject(args.split, str(read_meta(f).get("model_cat", "unknown")), -1, str(f.resolve()))
+        for f in folders
+    ]
 
     def task(i: int) -> EvalTask:
         slot = i // len(objects)
@@ -94,22 +131,38 @@ def evaluation_runs(folders: list[Path], args: argparse.Namespace, render_path: 
     return runs, counts
 
 
-def collection_runs(folders: list[Path], args: argparse.Namespace, render_path: str, out: Path) -> tuple[list, dict]:
-    """(one Profile per timed trajectory with its wall seconds, counts) of ``args.trajectories`` trajectories."""
+def collection_runs(
+    folders: list[Path], args: argparse.Namespace, render_path: str, out: Path
+) -> tuple[list, dict]:
+    """(one Profile per timed trajectory with its wall seconds, counts)."""
     from actaim2.data.collect import CollectConfig, CollectionWorker, Task, derive_seed
     from actaim2.data.real_objects import FolderObject
     from actaim2.data.storage import EncodedTrajectory
     from actaim2.sim.objects.partnet import read_object_folder
 
     infos = [read_object_folder(f) for f in folders]
-    config = CollectConfig(out=out, objects=(), per_object={}, render_path=render_path, hull_cache=args.hull_cache,
-                           folders=tuple(FolderObject(str(i.folder), i.category, args.split) for i in infos))
+    config = CollectConfig(
+        out=out,
+        objects=(),
+        per_object={},
+        render_path=render_path,
+        hull_cache=args.hull_cache,
+        folders=tuple(FolderObject(str(i.folder), i.category, args.split) for i in infos),
+    )
     worker = CollectionWorker(config)
 
     def task(i: int) -> Task:
         info, sampler = infos[i % len(infos)], ("random", "grasp")[(i // len(infos)) % 2]
-        return Task(f"bench_{info.object_id}_{sampler}_{i}", info.category, -1, args.split, sampler, i,
-                    derive_seed(0, info.object_id, i), folder=str(info.folder))
+        return Task(
+            f"bench_{info.object_id}_{sampler}_{i}",
+            info.category,
+            -1,
+            args.split,
+            sampler,
+            i,
+            derive_seed(0, info.object_id, i),
+            folder=str(info.folder),
+        )
 
     worker.run(task(2 * len(infos)))  # untimed: first render, lazy imports
     runs, counts = [], {"stored": 0, "given up": 0}
@@ -132,12 +185,18 @@ def _recorded(run, task):
 
 
 def summary(runs: list) -> tuple[float, dict[str, tuple[float, float]]]:
-    """(mean wall ms per run, {section: (mean ms per run, mean entries per run)}) with the untimed rest as OTHER."""
+    """(mean wall ms per run, {section: (mean ms per run, mean entries per run)}), the rest of the
+    wall time as OTHER."""
     n = len(runs)
     wall = sum(s for _, s in runs) * 1e3 / n
     names = {name for p, _ in runs for name in p.seconds}
-    rows = {name: (sum(p.seconds.get(name, 0.0) for p, _ in runs) * 1e3 / n,
-                   sum(p.calls.get(name, 0) for p, _ in runs) / n) for name in names}
+    rows = {
+        name: (
+            sum(p.seconds.get(name, 0.0) for p, _ in runs) * 1e3 / n,
+            sum(p.calls.get(name, 0) for p, _ in runs) / n,
+        )
+        for name in names
+    }
     rows[OTHER] = (wall - sum(ms for ms, _ in rows.values()), float("nan"))
     return wall, rows
 
@@ -146,7 +205,9 @@ def print_table(columns: dict[str, list], cameras: int) -> None:
     """One row per section, a (ms, share, entries) column group per kind of run."""
     summaries = {kind: summary(runs) for kind, runs in columns.items() if runs}
     names = [n for n in ORDER if any(n in rows for _, rows in summaries.values())]
-    names += sorted({n for _, rows in summaries.values() for n in rows} - set(names) - {OTHER}) + [OTHER]
+    names += sorted({n for _, rows in summaries.values() for n in rows} - set(names) - {OTHER}) + [
+        OTHER
+    ]
     head = " | ".join(f"{k}: ms | share | entries" for k in summaries)
     print(f"\n| section | {head} |")
     print("|---|" + "---|---|---|" * len(summaries))
@@ -154,15 +215,19 @@ def print_table(columns: dict[str, list], cameras: int) -> None:
         cells = []
         for wall, rows in summaries.values():
             ms, calls = rows.get(name, (0.0, 0.0))
-            cells.append(f"{ms:.0f} | {100 * ms / wall:.1f} % | {'' if calls != calls else f'{calls:.1f}'}")
+            cells.append(
+                f"{ms:.0f} | {100 * ms / wall:.1f} % | {'' if calls != calls else f'{calls:.1f}'}"
+            )
         print(f"| {name} | {' | '.join(cells)} |")
     totals = " | ".join(f"**{wall:.0f}** | 100 % | " for wall, _ in summaries.values())
     print(f"| **wall per run** | {totals} |")
     for kind, (_, rows) in summaries.items():
         ms, calls = rows.get("render", (0.0, 0.0))
         if calls:
-            print(f"{kind}: rendering {ms / calls:.0f} ms per observation ({calls:.1f} per run), "
-                  f"{ms / calls / cameras:.1f} ms per camera ({cameras} cameras)")
+            print(
+                f"{kind}: rendering {ms / calls:.0f} ms per observation ({calls:.1f} per run), "
+                f"{ms / calls / cameras:.1f} ms per camera ({cameras} cameras)"
+            )
 
 
 def main(args: argparse.Namespace) -> int:
@@ -178,25 +243,41 @@ def main(args: argparse.Namespace) -> int:
     render_path = resolve_render_path(args.render_path)
     cache = HullCache(args.hull_cache)
     cached, meshes = hull_coverage(folders, cache)
-    print(f"machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f} at start; render path {render_path}; "
-          f"{len(folders)} '{args.split}' objects ({', '.join(f.name for f in folders)}); hull cache {cache.root}: "
-          f"{cached} of {meshes} collision mesh files have an entry, the others load as one hull each")
-    evaluation, counts = evaluation_runs(folders, args, render_path) if args.samples > 0 else ([], {})
+    print(
+        f"machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f} at start; "
+        f"render path {render_path}; {len(folders)} '{args.split}' objects "
+        f"({', '.join(f.name for f in folders)}); hull cache {cache.root}: {cached} of {meshes} "
+        f"collision mesh files have an entry, the others load as one hull each"
+    )
+    evaluation, counts = (
+        evaluation_runs(folders, args, render_path) if args.samples > 0 else ([], {})
+    )
     if evaluation:
-        print(f"evaluation: {len(evaluation)} samples of actaim2 ({args.checkpoint}), {counts['success']} successes, "
-              f"{counts['error']} errors; load average {os.getloadavg()[0]:.2f}")
+        print(
+            f"evaluation: {len(evaluation)} samples of actaim2 ({args.checkpoint}), "
+            f"{counts['success']} successes, {counts['error']} errors; "
+            f"load average {os.getloadavg()[0]:.2f}"
+        )
     collection: list = []
     if args.trajectories > 0:
         with tempfile.TemporaryDirectory(prefix="actaim2-bench-throughput-") as tmp:
             collection, counts = collection_runs(folders, args, render_path, Path(tmp))
-        print(f"collection: {len(collection)} trajectories (random and grasp samplers in turn), {counts['stored']} stored, "
-              f"{counts['given up']} given up; load average {os.getloadavg()[0]:.2f}")
+        print(
+            f"collection: {len(collection)} trajectories (random and grasp samplers in turn), "
+            f"{counts['stored']} stored, {counts['given up']} given up; "
+            f"load average {os.getloadavg()[0]:.2f}"
+        )
     cameras = len(make_rig("ring5", WORKSPACE_CENTER))
     print_table({"evaluation sample": evaluation, "collection trajectory": collection}, cameras)
     for kind, runs in (("evaluation", evaluation), ("collection", collection)):
         if runs:
             wall, _ = summary(runs)
-            print(f"{kind}: {1e3 / wall:.2f} per s in one process ({2e3 / wall:.2f} per s with 2 workers if they "
-                  f"scaled perfectly)")
-    print(f"load average at the end: {os.getloadavg()[0]:.2f} (other jobs on the machine inflate wall times)")
+            print(
+                f"{kind}: {1e3 / wall:.2f} per s in one process "
+                f"({2e3 / wall:.2f} per s with 2 workers if they scaled perfectly)"
+            )
+    print(
+        f"load average at the end: {os.getloadavg()[0]:.2f} "
+        "(other jobs on the machine inflate wall times)"
+    )
     return 0

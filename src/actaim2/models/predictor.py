@@ -238,13 +238,14 @@ class ActionPredictor(nn.Module):
         # Index tensors only where the network reads a subset (the full default indexes nothing).
         self.register_buffer("channel_index", torch.tensor(c.read_channels) if len(c.read_channels) < c.in_channels
                              else None, persistent=False)
-        # RVT's pixel-location channels (u, v in [-1, 1]) cut into patches like the views, (N, 2 * P * P):
+        # RVT's pixel-location channels (u, v in [-1, 1]) in patches like the views' (N, 2 P^2):
         # the same for every view and batch row, so their share of the patch embedding is one
         # (N, 2 P^2) x (2 P^2, D) product per forward instead of two more channels on every view.
         line = torch.linspace(-1.0, 1.0, c.image_size)
         rows, cols = torch.meshgrid(line, line, indexing="ij")
         g, p = self.grid, c.patch
-        uv_patches = torch.stack([cols, rows]).reshape(PIXEL_CHANNELS, g, p, g, p).permute(1, 3, 0, 2, 4).reshape(g * g, -1)
+        uv = torch.stack([cols, rows]).reshape(PIXEL_CHANNELS, g, p, g, p)
+        uv_patches = uv.permute(1, 3, 0, 2, 4).reshape(g * g, -1)
         self.register_buffer("uv_patches", uv_patches, persistent=False)
 
     def forward(self, views: torch.Tensor, eps: torch.Tensor, proprio: torch.Tensor,
@@ -266,7 +267,8 @@ class ActionPredictor(nn.Module):
         if self.channel_index is not None:
             views = views.index_select(2, self.channel_index)
         g, p = self.grid, c.patch
-        patches = views.reshape(b, v, -1, g, p, g, p).permute(0, 1, 3, 5, 2, 4, 6).reshape(b, v, g * g, -1)
+        patches = views.reshape(b, v, -1, g, p, g, p).permute(0, 1, 3, 5, 2, 4, 6)
+        patches = patches.reshape(b, v, g * g, -1)
         if self.uses_uv:  # the embedding's columns: the views' channels, then the pixel locations'
             weight = self.patch_embed.weight
             tokens = F.linear(patches, weight[:, : patches.shape[-1]], self.patch_embed.bias) \

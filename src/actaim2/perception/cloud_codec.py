@@ -160,7 +160,8 @@ def decode(
         # items when no byte swap is needed (3x faster than a float copy).
         native = np.dtype(endian + "f4").isnative
         if native and row_step == width * point_step and point_step % 4 == 0 and x.offset % 4 == 0:
-            xyz = np.ndarray((height * width, 3), dtype=np.float32, buffer=buffer, offset=x.offset, strides=(point_step, 4))
+            xyz = np.ndarray((height * width, 3), dtype=np.float32, buffer=buffer, offset=x.offset,
+                             strides=(point_step, 4))
         elif native:
             view = np.ndarray((height, width), dtype="V12", buffer=buffer, offset=x.offset, strides=(row_step, point_step))
             xyz = view.copy().view(np.float32).reshape(-1, 3)
@@ -181,7 +182,8 @@ def decode(
         red, step = (field.offset + 1, 1) if is_bigendian else (field.offset + 2, -1)
         rgb = np.empty((height, width, 3), dtype=np.uint8)
         for channel in range(3):
-            rgb[..., channel] = np.ndarray((height, width), dtype=np.uint8, buffer=buffer, offset=red + channel * step,
+            rgb[..., channel] = np.ndarray((height, width), dtype=np.uint8, buffer=buffer,
+                                           offset=red + channel * step,
                                            strides=(row_step, point_step))
         return rgb.reshape(-1, 3)
 

@@ -135,7 +135,8 @@ def render_views(
     n_views, pixels = len(VIEWS), resolution * resolution
     # Points as one row per axis (3, N): products and tests over contiguous rows run 3-6x faster
     # here than over (N, 3) points; numpy transposes them 5x faster than torch.
-    points = torch.from_numpy(np.ascontiguousarray(np.asarray(xyz, dtype=np.float32).reshape(-1, 3).T))
+    points = np.asarray(xyz, dtype=np.float32).reshape(-1, 3)
+    points = torch.from_numpy(np.ascontiguousarray(points.T))
     colours = torch.from_numpy(np.ascontiguousarray(rgb, dtype=np.uint8)).reshape(-1, 3)
     centre = torch.tensor(center, dtype=torch.float32)
     inside = (points - centre[:, None]).abs_().amax(dim=0) <= half_extent  # NaN compares False
@@ -162,8 +163,10 @@ def render_views(
     flat += (torch.arange(n_views, dtype=torch.int32) * pixels)[:, None]
     # key = depth << 32 | point index: the minimum per pixel is the nearest point, ties going to
     # the lowest index, and the winner's index is read back from the key.
-    # Depth steps fit in int32 (a 1.2 m cube is 120000 steps); converting to int32 first is 2x faster here.
-    key = grid[2 * n_views :].to(torch.int32).long().bitwise_left_shift_(32).bitwise_or_(torch.arange(n))
+    # Depth steps fit in int32 (a 1.2 m cube is 120000 steps): converting to int32 first is 2x
+    # faster here.
+    key = grid[2 * n_views :].to(torch.int32).long()
+    key.bitwise_left_shift_(32).bitwise_or_(torch.arange(n))
     empty = torch.iinfo(torch.int64).max
     best = torch.full((n_views * pixels,), empty, dtype=torch.long).scatter_reduce_(0, flat.long().reshape(-1), key.reshape(-1), "amin")
     source = torch.from_numpy(np.flatnonzero((best != empty).numpy()))  # occupied pixels, view-major
