@@ -61,7 +61,7 @@ def _to_world_cropped(cloud: CameraCloud, center: torch.Tensor, half_extent: flo
     T = torch.as_tensor(np.asarray(cloud.T_world_cloud, dtype=np.float32))
     # Stored pictures and payloads can be read-only; torch wants writable buffers (a copy only
     # then). A strided view into a payload is read in place: the product reads strided points.
-    xyz = torch.from_numpy(np.require(cloud.xyz, np.float32, ['W']))
+    xyz = torch.from_numpy(np.require(cloud.xyz, np.float32, ['W', 'A']))
     world = torch.addmm(T[:3, 3:], T[:3, :3], xyz.T)
     inside = (world - center[:, None]).abs_().amax(dim=0) <= half_extent  # NaN compares False
     kept = torch.from_numpy(np.flatnonzero(inside.numpy()))  # numpy's SIMD nonzero: 8x torch.nonzero here
