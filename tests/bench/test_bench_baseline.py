@@ -1,4 +1,4 @@
-"""An earlier revision's code beside today's (actaim2.bench.baseline) and the throughput summary."""
+"""An earlier revision's code beside today's (bench/baseline.py) and the throughput summary."""
 from __future__ import annotations
 
 import os
@@ -19,15 +19,17 @@ def test_modules_of_a_revision_load_beside_todays_and_see_each_other():
     assert codec is not cloud_codec and old_fusion is not fusion
     assert sys.modules["actaim2.perception.fusion"] is fusion  # today's stays in place
     wire = codec.encode(np.arange(12, dtype=np.float32).reshape(2, 2, 3))
-    decoded = codec.decode(wire.fields, wire.data, wire.height, wire.width, wire.point_step, wire.row_step)
+    decoded = codec.decode(wire.fields, wire.data, wire.height, wire.width, wire.point_step,
+                           wire.row_step)
     np.testing.assert_array_equal(decoded.xyz, np.arange(12).reshape(4, 3))
     assert old_fusion.CameraCloud is not fusion.CameraCloud
 
 
 def test_an_exported_tree_is_imported_before_todays(tmp_path):
     tree = export_tree("HEAD", tmp_path)
-    shown = subprocess.run([sys.executable, "-c", "import actaim2.profiling as m; print(m.__file__)"],
-                           env=dict(os.environ, PYTHONPATH=python_path(tree)), capture_output=True, text=True)
+    command = [sys.executable, "-c", "import actaim2.profiling as m; print(m.__file__)"]
+    env = dict(os.environ, PYTHONPATH=python_path(tree))
+    shown = subprocess.run(command, env=env, capture_output=True, text=True)
     assert shown.returncode == 0, shown.stderr
     assert shown.stdout.strip() == str(tree / "src" / "actaim2" / "profiling.py")
 
