@@ -97,12 +97,14 @@ class PolicyNode(Node):
             raise ValueError(f"mode_guidance {self._guidance} is not a weight >= 0")
         self._noise_scale = check_noise_scale(float(p["noise_scale"]))
         self._model: PolicyModel | None = None
+        self._description = ""  # the model's describe(), answered with every mode: computed once
         self._load_error = ""
         try:
             serving = load_perception_config(p["perception_config"])
             stem = resolve_checkpoint(p["checkpoint"], installed_folders())
             self._model = PolicyModel.load(stem, serving, p["device"])
             warm = self._model.warm_up()
+            self._description = self._model.describe()
         except (PolicyLoadError, FileNotFoundError, ValueError) as exc:
             self._load_error = f"checkpoint failed to load: {exc}"
 
@@ -136,7 +138,8 @@ class PolicyNode(Node):
         if self._model is None:
             self.get_logger().error(f"{self._load_error}; every request is answered success=false with this reason")
         else:
-            self.get_logger().info(f"policy_node ready: {self._model.describe()}; warm-up {1000 * warm:.0f} ms; views: "
+            self.get_logger().info(f"policy_node ready: {self._description}; "
+                                   f"warm-up {1000 * warm:.0f} ms; views: "
                                    f"selector {self._topics['selector']}, predictor {self._topics['predictor']}")
 
     # -- views ------------------------------------------------------------------------------
@@ -180,7 +183,7 @@ class PolicyNode(Node):
         except Exception as exc:  # noqa: BLE001 - answered and logged: the node must keep serving
             return self._refuse(response, f"internal error: {type(exc).__name__}: {exc}", error=True)
         response.success = True
-        response.message = model.describe()
+        response.message = self._description
         response.cluster = sample.cluster
         response.embedding = sample.eps.tolist()
         response.cluster_probabilities = sample.probabilities.tolist()

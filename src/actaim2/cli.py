@@ -17,6 +17,8 @@ COMMANDS: dict[tuple[str, ...], tuple[str, str]] = {
     ("bench", "bags"): ("actaim2.bench.bags", "bag_recorder MB/s, CPU and loss under a ring5 replay; bag_player timing error"),
     ("bench", "control"): ("actaim2.bench.control", "IK success and latency, Ruckig time, straight-line deviation"),
     ("bench", "models"): ("actaim2.bench.models_cli", "selector sample and predictor latency, training step, parameters"),
+    ("bench", "throughput"): ("actaim2.bench.throughput",
+                              "where evaluation samples' and collection trajectories' time goes"),
     ("bench", "services"): ("actaim2.bench.services", "/sample_mode and /predict_keypose round trips, policy_node RSS, episode wall time"),
     ("expert",): ("actaim2.rollout.expert_eval", "scripted expert success per category (proves the objects are manipulable)"),
     ("render",): ("actaim2.perception.render_cli", "render a bag or saved cloud into orthographic PNG views"),

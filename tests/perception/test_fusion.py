@@ -74,3 +74,25 @@ def test_xyz_only_clouds_get_the_neutral_colour_and_outliers_can_be_removed():
     filtered = fuse([with_stray], FusionConfig(config.center, config.half_extent, 0.005, outlier_neighbors=10))
     assert not np.any(np.linalg.norm(filtered.xyz - stray, axis=1) < 1e-3)
     assert len(filtered.xyz) > 0.95 * len(plain.xyz)
+
+
+def test_payload_views_fuse_like_copies():
+    """A payload as rclpy delivers it (a writable array.array) decodes to a view that fusion reads
+    in place; the fused cloud is the one of contiguous copies, bit for bit."""
+    import array
+
+    config = FusionConfig(center=tuple(BOX_CENTER), half_extent=0.4)
+    views, copies = [], []
+    for cloud in two_camera_clouds():
+        wire = encode(cloud.xyz.reshape(120, 160, 3), cloud.rgb.reshape(120, 160, 3))
+        payload = array.array("B", wire.data)
+        decoded = decode(wire.fields, payload, wire.height, wire.width, wire.point_step,
+                         wire.row_step)
+        assert np.shares_memory(decoded.xyz, np.frombuffer(payload, np.uint8))
+        views.append(CameraCloud(decoded.xyz, decoded.rgb, cloud.T_world_cloud))
+        copy = np.ascontiguousarray(decoded.xyz)
+        copies.append(CameraCloud(copy, decoded.rgb.copy(), cloud.T_world_cloud))
+    fused, reference = fuse(views, config), fuse(copies, config)
+    assert len(fused.xyz) > 1000
+    np.testing.assert_array_equal(fused.xyz, reference.xyz)
+    np.testing.assert_array_equal(fused.rgb, reference.rgb)

@@ -22,6 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from actaim2.control.model import RobotModel
+from actaim2.profiling import timed
 
 
 @dataclass(frozen=True)
@@ -109,6 +110,7 @@ class CollisionChecker:
     def has_cloud(self) -> bool:
         return self._cloud is not None
 
+    @timed("collision checks")
     def check(self, angles: np.ndarray, use_cloud: bool = True) -> Collision | None:
         """The first collision at these joint angles, or None when the configuration is safe."""
         model, geom, data = self.robot.model, self.geometry, self.data

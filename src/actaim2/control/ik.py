@@ -26,6 +26,7 @@ import pinocchio as pin
 
 from actaim2.control.collision import CollisionChecker
 from actaim2.control.model import RobotModel
+from actaim2.profiling import timed
 
 
 class IKFailure(str, Enum):
@@ -75,6 +76,7 @@ class IKSolver:
         self._hi = robot.upper[bounded] - options.limit_margin
         self._shoulder, self._reach = _reach_sphere(robot)
 
+    @timed("IK")
     def solve(
         self,
         T_world_tcp: np.ndarray,

@@ -33,6 +33,7 @@ from actaim2.control.ik import IKSolver
 from actaim2.control.line import LineError, LineSegment, solve_line
 from actaim2.control.model import RobotModel
 from actaim2.keypose import GRASP, INIT, MANIPULATE, PHASE_NAMES, REACH
+from actaim2.profiling import timed
 from actaim2.control.trajectory import JointPlanner, JointTrajectory, Limits, Segment, State, TrajectoryError, sample
 
 
@@ -92,6 +93,7 @@ class KeyposePlanner:
         """Latest obstacle cloud in `world` (None: none); cropped around each grasp point when used."""
         self._cloud = None if points is None else np.asarray(points, dtype=float)
 
+    @timed("planning")
     def plan(self, phase: int, T_goal: np.ndarray, gripper_closed: bool, start: State, velocity_scaling: float = 1.0,
              rng: np.random.Generator | None = None) -> Motion:
         """The motion executing keypose (phase, T_goal, gripper_closed) from the arm state ``start``."""

@@ -20,6 +20,7 @@ from sklearn.mixture import GaussianMixture
 
 from actaim2.data.actions import ActionSequence
 from actaim2.data.object_cloud import ObjectCloud
+from actaim2.profiling import timed
 from actaim2.data.random_sampler import SamplingConfig, approach_is_free
 
 
@@ -81,6 +82,7 @@ class GMMAdaptiveSampler:
         """Round robin: the index-th adaptive trajectory of an object comes from this cluster."""
         return index % self.n_clusters
 
+    @timed("sampling")
     def sample(self, cloud: ObjectCloud, rng: np.random.Generator, index: int) -> ActionSequence | None:
         """An action sequence from cluster ``cluster_of(index)``, collision- and reach-filtered."""
         gmm = self.action_gmms[self.cluster_of(index)]

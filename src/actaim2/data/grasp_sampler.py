@@ -12,6 +12,7 @@ import numpy as np
 from actaim2.data.actions import ActionSequence
 from actaim2.data.grasp import AntipodalConfig, AntipodalGraspProposer, GraspProposer
 from actaim2.data.object_cloud import CloudConfig, ObjectCloud, part_segments
+from actaim2.profiling import timed
 from actaim2.data.random_sampler import SamplingConfig, approach_is_free, complete_action
 
 
@@ -25,6 +26,7 @@ class HeuristicGraspSampler:
         self.proposer = proposer or AntipodalGraspProposer(AntipodalConfig(gripper=config.gripper, reach_center=config.reach.center))
         self.top_k = top_k  # one of the k best grasps is drawn: the best alone would repeat itself
 
+    @timed("sampling")
     def sample(self, cloud: ObjectCloud, rng: np.random.Generator, index: int) -> ActionSequence | None:
         candidates = []
         for i, segment in enumerate(part_segments(cloud, self.cloud_config, rng)):

@@ -14,6 +14,7 @@ import numpy as np
 
 from actaim2.data.trajectory import CameraImage, Observation
 from actaim2.geometry import depth_to_points
+from actaim2.profiling import timed
 from actaim2.perception.fusion import CameraCloud, FusionConfig, fuse
 
 
@@ -42,6 +43,7 @@ class ObjectCloud:
     colors: np.ndarray  # (N, 3) uint8
 
 
+@timed("back-projection")
 def back_project(image: CameraImage) -> np.ndarray:
     """(H*W, 3) points in the camera's optical frame (NaN where depth is 0): :func:`actaim2.geometry.depth_to_points`."""
     return depth_to_points(image.depth, image.K).reshape(-1, 3)
@@ -110,6 +112,7 @@ def estimate_normals(points: np.ndarray, radius: float) -> np.ndarray:
     return np.asarray(pcd.normals)
 
 
+@timed("object cloud")
 def object_cloud(observation: Observation, config: CloudConfig, rng: np.random.Generator) -> ObjectCloud:
     """Robot-hidden observation -> the object's points (normals are left to whoever needs them)."""
     fused = fused_cloud(observation, config)

@@ -17,6 +17,7 @@ from scipy.spatial.transform import Rotation
 from actaim2.data.actions import ActionSequence
 from actaim2.data.gripper import collides, points_near
 from actaim2.data.object_cloud import ObjectCloud
+from actaim2.profiling import timed
 from actaim2.robots import HandGeometry, Reach, RobotSpec
 
 
@@ -84,6 +85,7 @@ class RandomSampler:
     def __init__(self, config: SamplingConfig):
         self.config = config
 
+    @timed("sampling")
     def sample(self, cloud: ObjectCloud, rng: np.random.Generator, index: int) -> ActionSequence | None:
         """One collision-filtered random action sequence, or None if none was found."""
         reachable = np.flatnonzero(self.config.reachable(cloud.points))

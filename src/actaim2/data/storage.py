@@ -47,6 +47,7 @@ from actaim2.data.trajectory import (
     Observation,
     Trajectory,
 )
+from actaim2.profiling import timed
 
 FORMAT_VERSION = 1
 DEPTH_SCALE = 1000.0  # stored depth unit: millimetres
@@ -123,6 +124,7 @@ class EncodedTrajectory:
         return sum(len(data) for _, data in self.members)
 
 
+@timed("encoding")
 def encode_trajectory(traj: Trajectory) -> EncodedTrajectory:
     cameras = sorted(traj.observations[OBSERVATION_NAMES[0]])
     members: list[tuple[str, bytes]] = []

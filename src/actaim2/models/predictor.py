@@ -238,9 +238,15 @@ class ActionPredictor(nn.Module):
         # Index tensors only where the network reads a subset (the full default indexes nothing).
         self.register_buffer("channel_index", torch.tensor(c.read_channels) if len(c.read_channels) < c.in_channels
                              else None, persistent=False)
+        # RVT's pixel-location channels (u, v in [-1, 1]) in patches like the views' (N, 2 P^2):
+        # the same for every view and batch row, so their share of the patch embedding is one
+        # (N, 2 P^2) x (2 P^2, D) product per forward instead of two more channels on every view.
         line = torch.linspace(-1.0, 1.0, c.image_size)
         rows, cols = torch.meshgrid(line, line, indexing="ij")
-        self.register_buffer("pixel_location", torch.stack([cols, rows]), persistent=False)
+        g, p = self.grid, c.patch
+        uv = torch.stack([cols, rows]).reshape(PIXEL_CHANNELS, g, p, g, p)
+        uv_patches = uv.permute(1, 3, 0, 2, 4).reshape(g * g, -1)
+        self.register_buffer("uv_patches", uv_patches, persistent=False)
 
     def forward(self, views: torch.Tensor, eps: torch.Tensor, proprio: torch.Tensor,
                 point: torch.Tensor | None = None) -> PredictorOutput:
@@ -260,12 +266,15 @@ class ActionPredictor(nn.Module):
             views, v = views[:, c.view_index : c.view_index + 1], 1
         if self.channel_index is not None:
             views = views.index_select(2, self.channel_index)
-        x = views.reshape(b * v, -1, h, w)
-        if self.uses_uv:
-            x = torch.cat([x, self.pixel_location.expand(b * v, -1, -1, -1)], dim=1)
         g, p = self.grid, c.patch
-        patches = x.reshape(b, v, -1, g, p, g, p).permute(0, 1, 3, 5, 2, 4, 6).reshape(b, v, g * g, -1)
-        tokens = self.patch_embed(patches)  # (B, V, N, D)
+        patches = views.reshape(b, v, -1, g, p, g, p).permute(0, 1, 3, 5, 2, 4, 6)
+        patches = patches.reshape(b, v, g * g, -1)
+        if self.uses_uv:  # the embedding's columns: the views' channels, then the pixel locations'
+            weight = self.patch_embed.weight
+            tokens = F.linear(patches, weight[:, : patches.shape[-1]], self.patch_embed.bias) \
+                + F.linear(self.uv_patches, weight[:, patches.shape[-1] :])
+        else:
+            tokens = self.patch_embed(patches)  # (B, V, N, D)
         cond = self.condition(torch.cat([eps, proprio], dim=1))  # (B, D)
         tokens = tokens + self.position + cond[:, None, None, :]
         n = tokens.shape[2]

@@ -26,6 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from actaim2.profiling import timed
+
 # sensor_msgs/PointField datatype constants -> numpy scalar type (endianness added at use).
 POINTFIELD_DTYPES: dict[int, str] = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
 UINT32 = 6
@@ -66,7 +68,9 @@ class EncodedCloud:
 class DecodedCloud:
     """Points of one cloud in its own frame, flattened row-major (organized index = v * width + u).
 
-    ``xyz`` keeps NaNs of invalid returns; ``rgb`` is None for xyz-only clouds.
+    ``xyz`` keeps NaNs of invalid returns; in the common layout it is a view into the payload
+    (strided, read-only when the payload is): fusion reads it in place. ``rgb`` is None for
+    xyz-only clouds.
     """
 
     xyz: np.ndarray  # (height * width, 3) float32
@@ -111,6 +115,7 @@ def encode(xyz: np.ndarray, rgb: np.ndarray | None = None) -> EncodedCloud:
     return EncodedCloud(tuple(fields), height, width, point_step, point_step * width, record.tobytes())
 
 
+@timed("decode")
 def decode(
     fields: list[Field] | tuple[Field, ...],
     data: bytes | bytearray | memoryview | np.ndarray,
@@ -150,9 +155,14 @@ def decode(
 
     x, y, z = (by_name[n] for n in "xyz")
     if all(f.datatype == FLOAT32 for f in (x, y, z)) and (y.offset, z.offset) == (x.offset + 4, x.offset + 8):
-        # The common layout (every driver here): one strided copy of the three floats per point,
-        # as opaque 12-byte items when no byte swap is needed (3x faster than a float copy).
-        if np.dtype(endian + "f4").isnative:
+        # The common layout (every driver here): rows without padding give a strided view, no
+        # copy; with padding, one strided copy of the three floats per point, as opaque 12-byte
+        # items when no byte swap is needed (3x faster than a float copy).
+        native = np.dtype(endian + "f4").isnative
+        if native and row_step == width * point_step and point_step % 4 == 0 and x.offset % 4 == 0:
+            xyz = np.ndarray((height * width, 3), dtype=np.float32, buffer=buffer, offset=x.offset,
+                             strides=(point_step, 4))
+        elif native:
             view = np.ndarray((height, width), dtype="V12", buffer=buffer, offset=x.offset, strides=(row_step, point_step))
             xyz = view.copy().view(np.float32).reshape(-1, 3)
         else:
@@ -166,12 +176,16 @@ def decode(
 
     def packed_colour(field: Field) -> np.ndarray:
         # The R, G and B bytes of the packed value 0xAARRGGBB, copied straight out of the buffer
-        # (never through a float, which could alter NaN-patterned colours): 5x faster than
-        # unpack_rgb on a copied column.
+        # (never through a float, which could alter NaN-patterned colours), one byte column at a
+        # time: 2x faster here than one copy of 3-byte items, 10x faster than unpack_rgb.
         column(Field(field.name, field.offset, UINT32))  # checks that the field fits in point_step
         red, step = (field.offset + 1, 1) if is_bigendian else (field.offset + 2, -1)
-        view = np.ndarray((height, width, 3), dtype=np.uint8, buffer=buffer, offset=red, strides=(row_step, point_step, step))
-        return view.copy().reshape(-1, 3)
+        rgb = np.empty((height, width, 3), dtype=np.uint8)
+        for channel in range(3):
+            rgb[..., channel] = np.ndarray((height, width), dtype=np.uint8, buffer=buffer,
+                                           offset=red + channel * step,
+                                           strides=(row_step, point_step))
+        return rgb.reshape(-1, 3)
 
     return DecodedCloud(xyz, _decode_colour(by_name, column, packed_colour), height, width)
 

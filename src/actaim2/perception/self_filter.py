@@ -20,6 +20,7 @@ import numpy as np
 import pinocchio as pin
 import torch
 
+from actaim2.profiling import timed
 from actaim2.robots import RobotSpec
 
 DEFAULT_MARGIN = 0.01  # m: above depth noise at 1 m, below the 2 cm gap to a handle being grasped
@@ -154,6 +155,7 @@ class RobotSelfFilter:
             self._posed = posed
         return self._posed
 
+    @timed("self-filter")
     def keep_mask(self, points: np.ndarray) -> np.ndarray:
         """True for world points (N, 3) that are not on the robot."""
         points = np.ascontiguousarray(points, dtype=np.float32)

@@ -41,6 +41,7 @@ from actaim2.models.view_geometry import CubePlacement
 from actaim2.perception.config import PerceptionConfig
 from actaim2.policy.requests import RequestError, check_cluster, check_embedding, check_phase
 from actaim2.policy.views import Views
+from actaim2.profiling import timed
 from actaim2.train import checkpoint
 from actaim2.train.distributed import choose_device
 
@@ -152,7 +153,8 @@ class PolicyModel:
     def _batch(self, views: Views) -> torch.Tensor:
         return torch.from_numpy(np.ascontiguousarray(views.data))[None].to(self.device)
 
-    @torch.no_grad()
+    @timed("model forward")
+    @torch.inference_mode()
     def sample_mode(self, views: Views, cluster: int, seed: int, noise_scale: float = NOISE_SCALE) -> ModeSample:
         """``noise_scale``: the spread of the latent draw (``ModeSelector.sample``; 0 = the cluster's noise-free eps)."""
         check_noise_scale(noise_scale)
@@ -164,7 +166,8 @@ class PolicyModel:
         return ModeSample(int(result.cluster[0]), result.eps[0].float().cpu().numpy(),
                           result.cluster_probabilities[0].float().cpu().numpy())
 
-    @torch.no_grad()
+    @timed("model forward")
+    @torch.inference_mode()
     def predict_keypose(self, views: Views, eps: np.ndarray | list[float], phase: int, gripper_closed: bool,
                         alternatives: int = 0, separation_deg: float = ALTERNATIVE_SEPARATION_DEG,
                         guidance: float = 0.0) -> KeyposePrediction:

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
 
+from actaim2.profiling import section, timed
 from actaim2.robots import RobotSpec, load_robot_spec
 from actaim2.sim.gripper_action import GripperGoal
 from actaim2.sim.joint_trajectory import ActiveTrajectory, TrajectoryCommand
@@ -183,7 +184,8 @@ class SimEnv:
         folder = Path(folder)
         rng = np.random.default_rng(seed)
         dx, dy, yaw = (rng.uniform(-j, j) for j in self.placement_jitter) if jitter else (0.0, 0.0, 0.0)
-        obj = self.sim.load_object(folder, scale=scale, hulls=self.hulls)
+        with section("object load"):
+            obj = self.sim.load_object(folder, scale=scale, hulls=self.hulls)
         place(obj, obj.front_distance + dx, dy, yaw)
         if np.ndim(dof_fraction) and len(dof_fraction) != len(obj.lower):
             raise ValueError(f"{len(dof_fraction)} dof fractions for the {len(obj.lower)} DoFs {obj.dof_names}")
@@ -202,6 +204,7 @@ class SimEnv:
                               obj.lower.copy(), obj.upper.copy(), obj.qpos())
         return self.info
 
+    @timed("physics")
     def step(self, n: int = 1) -> None:
         self.sim.step(n)
         for observer in self.step_observers:

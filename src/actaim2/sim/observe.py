@@ -14,6 +14,7 @@ import numpy as np
 import sapien
 
 from actaim2.geometry import transform_points
+from actaim2.profiling import timed
 from actaim2.sim.cameras import CameraFrame, CameraSpec
 from actaim2.sim.registration import register_colour
 from actaim2.sim.render_path import make_renderer
@@ -67,6 +68,7 @@ class CameraRig:
             self._renderer.set_camera_poses(poses)
         self._biases = self.noise.draw_biases(self._rendered, self._rng)
 
+    @timed("render")
     def observe(self, sim_time: float, hidden: set[int] = frozenset()) -> Observation:
         """Render every camera; entities whose per_scene_id is in ``hidden`` are left out."""
         rendered = self._renderer.render(set(hidden))
