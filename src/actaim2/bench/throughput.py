@@ -8,6 +8,9 @@ heuristic-grasp samplers in turn). Objects are visited in turn, so every sample 
 as the commands do. One evaluation sample and one trajectory run first, untimed: the
 checkpoint's load and the renderer's shader compilation are paid once per worker, not per sample.
 
+The counts printed with them include the runs that moved a part by more than ``MOVED`` of its
+range: the objects are physically there for both paths.
+
 Each run records an :class:`actaim2.profiling.Profile`: the sections the library marks
 (physics steps, rendering, object loading, depth back-projection, fusion, the object cloud's
 support removal, the self-filter, splatting the views, action sampling, IK, collision checks,
@@ -27,6 +30,7 @@ import time
 from pathlib import Path
 
 DEFAULT_OBJECTS = Path("../shared/partnet")
+MOVED = 0.05  # a run "moved a part" when some DoF changed by more than this share of its range
 OTHER = "Python and the rest"
 ORDER = (
     "physics",
@@ -122,11 +126,12 @@ def evaluation_runs(
         return EvalTask("actaim2", objects[i % len(objects)], slot, slot % clusters, clusters)
 
     worker.run(task(len(objects) * clusters))  # untimed: first render, lazy imports
-    runs, counts = [], {"success": 0, "error": 0}
+    runs, counts = [], {"success": 0, "moved": 0, "error": 0}
     for i in range(args.samples):
         record, profile, seconds = _recorded(worker.run, task(i))
         runs.append((profile, seconds))
         counts["success"] += bool(record.get("success"))
+        counts["moved"] += record.get("largest_change", 0.0) > MOVED
         counts["error"] += "error" in record
     return runs, counts
 
@@ -165,11 +170,13 @@ def collection_runs(
         )
 
     worker.run(task(2 * len(infos)))  # untimed: first render, lazy imports
-    runs, counts = [], {"stored": 0, "given up": 0}
+    runs, counts = [], {"stored": 0, "moved": 0, "given up": 0}
     for i in range(args.trajectories):
         result, profile, seconds = _recorded(worker.run, task(i))
         runs.append((profile, seconds))
-        counts["stored" if isinstance(result, EncodedTrajectory) else "given up"] += 1
+        stored = isinstance(result, EncodedTrajectory)
+        counts["stored" if stored else "given up"] += 1
+        counts["moved"] += stored and max(map(abs, result.entry["dof_change"]), default=0.0) > MOVED
     return runs, counts
 
 
@@ -255,7 +262,8 @@ def main(args: argparse.Namespace) -> int:
     if evaluation:
         print(
             f"evaluation: {len(evaluation)} samples of actaim2 ({args.checkpoint}), "
-            f"{counts['success']} successes, {counts['error']} errors; "
+            f"{counts['success']} successes, {counts['moved']} moved a part by more than "
+            f"{MOVED:.0%}, {counts['error']} errors; "
             f"load average {os.getloadavg()[0]:.2f}"
         )
     collection: list = []
@@ -264,7 +272,8 @@ def main(args: argparse.Namespace) -> int:
             collection, counts = collection_runs(folders, args, render_path, Path(tmp))
         print(
             f"collection: {len(collection)} trajectories (random and grasp samplers in turn), "
-            f"{counts['stored']} stored, {counts['given up']} given up; "
+            f"{counts['stored']} stored, {counts['moved']} moved a part by more than {MOVED:.0%}, "
+            f"{counts['given up']} given up; "
             f"load average {os.getloadavg()[0]:.2f}"
         )
     cameras = len(make_rig("ring5", WORKSPACE_CENTER))
