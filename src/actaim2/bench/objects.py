@@ -9,9 +9,10 @@
     reload: URDF parsing, hull files read from the cache, PhysX cooking, settling);
   * hulls: convex collision shapes of the loaded object;
   * physics real-time factor with the object loaded and the arm following a trajectory;
-  * a scripted push (:mod:`actaim2.rollout.push`): each DoF in turn, half-open, pushed by the
-    arm on joint targets until one moves by at least ``PUSH_MOVED`` of its range: proof that
-    the object is physically there (a part the arm passes through never moves).
+  * a scripted push (:mod:`actaim2.rollout.push`): each DoF in turn, half-open (then open,
+    then closed), pushed by the arm on joint targets until one moves by at least
+    ``PUSH_MOVED`` of its range: proof that the object is physically there (a part the arm
+    passes through never moves).
 """
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ from pathlib import Path
 TARGET_PREPARE_S = 300.0
 TARGET_PHYSICS_RTF = 10.0
 PUSH_MOVED = 0.1  # fraction of a DoF's range a scripted push must move it by
+PUSH_FROM = (0.5, 1.0, 0.0)  # the DoFs' starting fractions tried in turn
 REFERENCE = ("storage_furniture", 0)  # a generated object: the physics rate to compare with
 
 
@@ -78,17 +80,19 @@ def _arm_moving_rtf(env, seconds: float) -> float:
 
 
 def _push_any_part(env, pusher, folder: Path) -> dict:
-    """The first DoF a scripted push moves by PUSH_MOVED of its range (else the one it moved
-    most): {dof, moved (fraction of the range), tried (DoFs pushed)}."""
+    """The first DoF a scripted push moves by PUSH_MOVED of its range, from half-open, then open,
+    then closed (a lid that falls shut from half-open is pushed shut from open); else the push
+    that moved a part most: {dof, moved (fraction of the range), tried (pushes)}."""
     best = {"dof": "", "moved": 0.0, "tried": 0}
-    for k, name in enumerate(env.object.dof_names):
-        env.reset(folder=folder, seed=0, dof_fraction=0.5)
-        result = pusher.push(k)
-        best["tried"] += 1
-        if result.moved > best["moved"]:
-            best.update(dof=name, moved=result.moved)
-        if result.moved >= PUSH_MOVED:
-            break
+    for fraction in PUSH_FROM:
+        for k, name in enumerate(env.object.dof_names):
+            env.reset(folder=folder, seed=0, dof_fraction=fraction)
+            result = pusher.push(k)
+            best["tried"] += 1
+            if result.moved > best["moved"]:
+                best.update(dof=name, moved=result.moved)
+            if result.moved >= PUSH_MOVED:
+                return best
     return best
 
 
@@ -115,5 +119,5 @@ def markdown(rows: list[dict], total: dict, workers: int) -> str:
 def _push_cell(push: dict) -> str:
     moved = push["moved"] >= PUSH_MOVED
     where = f"{push['dof']} {push['moved']:.0%}" if push["dof"] else "nothing"
-    return f"{'yes' if moved else 'NO'}: {where} ({push['tried']} DoF tried)"
+    return f"{'yes' if moved else 'NO'}: {where} ({push['tried']} pushes)"
 
