@@ -17,8 +17,9 @@ def _dataset(folder: Path) -> None:
     entries = []
 
     def add(obj: str, category: str, sampler: str, change: float, touched: bool) -> None:
-        entries.append({"id": f"{obj}-{sampler}-{len(entries)}", "object_id": obj, "category": category,
-                        "split": "train_seen", "sampler": sampler, "index": len(entries),
+        k = sum(e["sampler"] == sampler for e in entries)  # numbered per sampler, as collect does per object
+        entries.append({"id": f"{obj}-{sampler}-{k:05d}", "object_id": obj, "category": category,
+                        "split": "train_seen", "sampler": sampler, "index": k,
                         "gt_success": abs(change) > 0.3, "dof_change": [0.0, change], "touched": touched,
                         "attempts": 1, "worker_seconds": 1.0, "chunk": 0, "offset": 0, "size": 10,
                         "action": [0.0] * 12})
@@ -28,8 +29,9 @@ def _dataset(folder: Path) -> None:
     add("tab", "table", "grasp", -0.4, True)
     for _ in range(4):
         add("tab", "table", "grasp", 0.0, False)
+    entries.append({**entries[0], "id": "cab_a-random-00010", "gt_success": True})  # a top-up: left out
     (folder / "index.jsonl").write_text("".join(json.dumps(e) + "\n" for e in entries))
-    (folder / "skipped.jsonl").write_text(json.dumps({"id": "x", "sampler": "random", "category": "storage_furniture",
+    (folder / "skipped.jsonl").write_text(json.dumps({"id": "cab_b-random-00003", "sampler": "random", "category": "storage_furniture",
                                                       "instance": -1, "reasons": ["sampler found no action"]}) + "\n")
     (folder / "runs.jsonl").write_text(json.dumps({"stage": "explore", "workers": 2, "trajectories": 15, "skipped": 1,
                                                    "errors": 0, "seconds": 30.0, "load_average": 1.5}) + "\n")
@@ -40,7 +42,7 @@ def test_a_dataset_becomes_a_record_and_its_sampler_tables(tmp_path):
     _dataset(tmp_path / "ds")
     record_from_collection(tmp_path / "ds", tmp_path, "pm", command="actaim2 collect --out ds")
     record = load_record(tmp_path, "pm")
-    assert record.meta["kind"] == "collection" and record.meta["samples"] == 16
+    assert record.meta["kind"] == "collection" and record.meta["samples"] == 17
     assert record.meta["seconds"] == 30 and record.meta["load_average"] == 1.5
     assert all("action" not in s and "offset" not in s for s in record.samples)
 

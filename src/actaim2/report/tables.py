@@ -102,10 +102,21 @@ CHANGE_BINS = ((0.0, 0.01), (0.01, MOVED), (MOVED, 0.3), (0.3, np.inf))
 
 
 def _collected(records: Sequence[Record]) -> list[dict]:
+    """The trajectories each sampler was asked for: a collection's top-ups (random trajectories
+    past the random count, standing in for the ones another sampler gave up on) are left out,
+    so every sampler is measured on the same objects at its own count."""
+    samples = []
     for r in records:
         if r.meta.get("kind") != "collection":
             raise RecordError(f"record {r.name} is not a collection")
-    return [s for r in records for s in r.samples]
+        counts = r.meta["dataset"]["info"]["per_object"]
+        samples += [s for s in r.samples if _index(s) < counts.get(s["sampler"], 0)]
+    return samples
+
+
+def _index(sample: dict) -> int:
+    """The trajectory's number among its sampler's on its object (ids end in ``-<number>``)."""
+    return int(sample["id"].rsplit("-", 1)[1])
 
 
 def _largest_change(sample: dict) -> float:
