@@ -108,7 +108,11 @@ class RosExecutor:
         return State(q, v, np.zeros_like(q))
 
     def arm_state(self) -> State:
+        """The latest arm state; a stale one waits up to ``joint_states_timeout`` for the next
+        message (on a busy machine delivery can pause), then the goal fails."""
         state = self._fresh_arm_state()
+        if state is None and self.wait_for_joint_states(self._settings.joint_states_timeout):
+            state = self._fresh_arm_state()
         if state is None:
             raise RuntimeError(
                 f"no fresh /joint_states with the arm joints {list(self._spec.arm_joints)} "
