@@ -232,6 +232,35 @@ def test_data_collection_finds_real_objects_by_folder_name(collected: Path) -> N
     assert all(o.key == f"folder:{o.object_id}" for o in objects)
 
 
+def test_data_collection_explores_an_object_the_dataset_does_not_hold(collected: Path, tmp_path,
+                                                                      monkeypatch) -> None:
+    """A val faucet the dataset has no trajectory of: Data Collection collects its own exploration
+    (half random, half grasp, skipped ones replaced), labels it with the dataset's calibrated success model, never
+    recalibrating on it, and fits its GMM sampler from it."""
+    from actaim2.data.labelling import stored_model
+    from actaim2.eval.data_collection import data_collection_samplers, explored_samplers
+    from actaim2.eval.evalset import partnet_objects
+
+    held = {e["object_id"] for e in DatasetReader(collected).entries}
+    unheld = [o for o in partnet_objects(shared_partnet(), ("val",), 2, ("faucet",))
+              if o.object_id not in held]
+    assert unheld and not data_collection_samplers(collected, unheld)
+    monkeypatch.setattr("actaim2.data.collect.prepare_objects", lambda folders, cache, workers: None)
+    out = tmp_path / "data_collection"
+    samplers, labelling = explored_samplers(collected, unheld[:1], out, per_object=3,
+                                            render_path="raycast", workers=0, show_progress=False)
+    entries = DatasetReader(out).entries
+    assert len(entries) == 3 and {e["sampler"] for e in entries} <= {"random", "grasp"}  # a skipped grasp: a random top-up
+    assert {e["object_id"] for e in entries} == {unheld[0].object_id}
+    assert {e["split"] for e in entries} == {"val"}
+    assert list(samplers) == [unheld[0].key]
+    model = stored_model(collected)
+    assert labelling["model"]["weights"] == list(model.weights)
+    assert labelling["model"]["threshold"] == model.threshold
+    assert not labelling["model"]["calibrated_here"]
+    assert labelling["per_split"]["val"]["n"] == 3 and "faucet" in labelling["per_category"]
+
+
 def test_object_splits_take_the_partnet_split_names(tmp_path) -> None:
     root = tmp_path / "objects"
     make_object(root / "77777")

@@ -52,12 +52,14 @@ from actaim2.rollout.sim_executor import SimEnvExecutor
 from actaim2.data.actions import ActionSequence, Sampler
 from actaim2.data.gmm_sampler import GMMAdaptiveSampler, GMMConfig
 from actaim2.data.grasp_sampler import HeuristicGraspSampler
-from actaim2.data.labelling import EMBEDDINGS_FILE, ENCODER_FILE, fit_default_encoder, label_dataset, measure_motions, visual_labels
+from actaim2.data.labelling import (EMBEDDINGS_FILE, ENCODER_FILE, fit_default_encoder, label_dataset, measure_motions,
+                                    object_reaches, success_scores, visual_labels)
 from actaim2.data.object_cloud import CloudConfig, object_cloud
 from actaim2.data.random_sampler import RandomSampler, SamplingConfig
 from actaim2.data.real_objects import FolderObject
 from actaim2.data.splits import CALIBRATION_SPLITS, TRAINING_SPLITS, check_no_leak, split_of
 from actaim2.data.stats import RUNS_FILE
+from actaim2.data.success import SuccessModel
 from actaim2.data.storage import (SKIPPED_FILE, DatasetReader, DatasetWriter, EncodedTrajectory, encode_trajectory,
                                   object_of, trajectory_id)
 from actaim2.data.trajectory import CameraImage, ObjectState, Observation, Trajectory
@@ -409,18 +411,24 @@ def _label(config: CollectConfig) -> dict:
                          show_progress=config.show_progress)
 
 
-def fit_gmm_samplers(config: CollectConfig, round_start: int) -> dict[str, GMMAdaptiveSampler]:
+def fit_gmm_samplers(config: CollectConfig, round_start: int,
+                     model: SuccessModel | None = None) -> dict[str, GMMAdaptiveSampler]:
     """Per object, the GMM-adaptive sampler of the round whose first GMM index is ``round_start``.
 
-    Fitted on the trajectories of the earlier stages and rounds only, labelled among themselves,
-    in id order: a round interrupted and resumed draws exactly what it would have drawn.
+    Fitted on the trajectories of the earlier stages and rounds only, labelled among themselves
+    (``model`` None: the label calibrated on their calibration split) or by a success ``model``
+    calibrated elsewhere (objects outside the calibration splits), in id order: a round
+    interrupted and resumed draws exactly what it would have drawn.
     """
     reader = DatasetReader(config.out)
     with np.load(config.out / EMBEDDINGS_FILE) as f:
         z = dict(zip(f["ids"].tolist(), f["z"]))
     before = sorted((e for e in reader.entries if e["sampler"] != "gmm" or e["index"] < round_start), key=lambda e: e["id"])
     motions = measure_motions(config.out, workers=config.workers, show_progress=False)
-    scores, model, _ = visual_labels(before, motions)
+    if model is None:
+        scores, model, _ = visual_labels(before, motions)
+    else:
+        scores = success_scores([motions[e["id"]] for e in before], model, object_reaches(before, motions))
     sampling = SamplingConfig.for_robot(load_robot_spec(config.robot))
     by_object: dict[str, list[int]] = {}
     for k, e in enumerate(before):

@@ -283,9 +283,11 @@ def _report(labels: np.ndarray, gt: np.ndarray, splits: np.ndarray, calib: np.nd
 def label_dataset(root: str | Path, encoder_path: str | Path,
                   calibration_splits: tuple[str, ...] = CALIBRATION_SPLITS, workers: int = 0,
                   motion_config: MotionConfig = MotionConfig(), reach_config: ReachConfig = ReachConfig(),
-                  show_progress: bool = True) -> dict:
+                  show_progress: bool = True, model: SuccessModel | None = None) -> dict:
     """Measure motions, embed, calibrate on ``calibration_splits``, write labels; returns the
-    report."""
+    report. A given ``model`` (calibrated on another dataset, :func:`stored_model`) labels
+    instead of a calibration here: objects outside the calibration splits are labelled as
+    the training data was."""
     reader = DatasetReader(root)
     if not reader.entries:
         raise ValueError(f"{root} holds no trajectories to label")
@@ -294,7 +296,10 @@ def label_dataset(root: str | Path, encoder_path: str | Path,
     z = embed_dataset(reader, encoder, encoder_digest(encoder_path), show_progress)
     entries = reader.entries
     reaches = object_reaches(entries, motions, reach_config)
-    scores, model, calibrated = visual_labels(entries, motions, calibration_splits, reaches)
+    if model is None:
+        scores, model, calibrated = visual_labels(entries, motions, calibration_splits, reaches)
+    else:
+        scores, calibrated = success_scores([motions[e["id"]] for e in entries], model, reaches), False
     labels = scores > model.threshold
     gt = np.array([e["gt_success"] for e in entries], dtype=bool)
     splits = np.array([e["split"] for e in entries])
@@ -342,3 +347,11 @@ def label_dataset(root: str | Path, encoder_path: str | Path,
     }
     (Path(root) / REPORT_FILE).write_text(json.dumps(report, indent=2))
     return report
+
+
+def stored_model(root: str | Path) -> SuccessModel:
+    """The success model a labelled dataset's ``labelling.json`` holds (its calibration)."""
+    path = Path(root) / REPORT_FILE
+    if not path.is_file():
+        raise FileNotFoundError(f"{path} is missing: collect labels a dataset with trajectories of a calibration split")
+    return SuccessModel.from_json(json.loads(path.read_text())["model"])

@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from actaim2.data.collect_cli import add_catalogue_arguments
+from actaim2.eval.presets import DATA_COLLECTION_EXPLORATION
 from actaim2.eval.protocol_cli import add_protocol_arguments, splits_files
 
 if TYPE_CHECKING:
@@ -56,6 +57,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                                                                   "(train config ablation_single_view)")
     parser.add_argument("--data", type=Path, help="the training dataset: Data Collection's GMMs and Goal-RVT's encoder E")
     parser.add_argument("--encoder", type=Path, help="Goal-RVT's encoder E (default: the dataset's encoder.pt)")
+    parser.add_argument("--data-collection-exploration", type=int, default=DATA_COLLECTION_EXPLORATION, metavar="N",
+                        help="Data Collection on objects --data does not hold: first collect N exploration trajectories "
+                             "on each (half random, half heuristic grasp) into <out>/data_collection, labelled by "
+                             "--data's success label; 0 leaves such objects out of its row")
     parser.add_argument("--methods", default="", help="only these rows (comma separated: actaim2, data_collection, random, "
                                                       "goal_rvt, vqvae_rvt, actaim_cvae, actaim2_depth, actaim2_single_view)")
     add_catalogue_arguments(parser)
@@ -164,7 +169,7 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.data.real_objects import partnet_root
     from actaim2.data.splits import GENERATED, catalogue
     from actaim2.eval.checkpoints import describe, perception_of
-    from actaim2.eval.data_collection import data_collection_samplers
+    from actaim2.eval.data_collection import EXPLORATION_DIR, data_collection_samplers, explored_samplers
     from actaim2.eval.evalset import (EVAL_SET_VERSION, catalogue_objects, folder_objects,
                                       partnet_objects)
     from actaim2.eval.methods import ABLATIONS, PSEUDO_GROUPING, ablation_problem
@@ -227,16 +232,31 @@ def main(args: argparse.Namespace) -> int:
         lock = check_protocol("evaluate", guarded, args.final, args.lock, locked, EVAL_SET_VERSION,
                               preset.counts.per_cluster)
         render_path = _render_path(perception, args)
-        gmm = None
-        if "data_collection" in methods:
-            gmm = data_collection_samplers(args.data, objects)
+        if args.data_collection_exploration < 0:
+            raise ValueError(f"--data-collection-exploration {args.data_collection_exploration} is negative")
         encoder = _encoder(args, stems["goal_rvt"]) if "goal_rvt" in methods else None
         run = {"eval_set_version": EVAL_SET_VERSION, "robot": args.robot, "rig": perception.rig, "hand_half_turn": half_turn,
                "pseudo_grouping": PSEUDO_GROUPING, "keypose_alternatives": alternatives, "mode_guidance": guidance,
                "noise_scale": noise_scale,
                "methods": {m: described.get(m, {}).get("weights_sha256") or ("dataset " + _data_digest(args.data)
                                                                           if m == "data_collection" else m) for m in methods}}
+        if "data_collection" in methods:
+            run["data_collection_exploration"] = args.data_collection_exploration
         check_run(args.out, run)
+        gmm = None
+        if "data_collection" in methods:
+            gmm = data_collection_samplers(args.data, objects)
+            unexplored = [o for o in objects if o.key not in gmm]
+            if unexplored and args.data_collection_exploration > 0:
+                print(f"Data Collection: exploring {len(unexplored)} object(s) the training dataset does not hold, "
+                      f"{args.data_collection_exploration} trajectories each, into {args.out / EXPLORATION_DIR}")
+                explored, labelling = explored_samplers(args.data, unexplored, args.out / EXPLORATION_DIR,
+                                                        args.data_collection_exploration, render_path,
+                                                        max(1, args.workers), not args.no_progress)
+                gmm.update(explored)
+                print("Data Collection: the training dataset's success label on them: "
+                      + ", ".join(f"{split} accuracy {m['accuracy']:.1%}, balanced {m['balanced_accuracy']:.1%} "
+                                  f"({m['n']} trajectories)" for split, m in labelling["per_split"].items()))
     except (ValueError, FileNotFoundError, RunMismatchError) as exc:
         print(f"actaim2 evaluate: {exc}", file=sys.stderr)
         return 2

@@ -10,6 +10,10 @@ from dataclasses import dataclass, replace
 
 from actaim2.eval.tasks import SampleCounts
 
+# Data Collection's exploration trajectories per object (random + heuristic grasp) on an object
+# the training dataset does not hold, before its GMMs are fitted (eval/data_collection.py).
+DATA_COLLECTION_EXPLORATION = 22
+
 
 @dataclass(frozen=True)
 class Preset:

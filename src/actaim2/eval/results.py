@@ -45,14 +45,15 @@ def check_run(out: Path, run: dict) -> dict:
     old = json.loads(path.read_text())
     # a run.json written before the planner option, or before pseudo-clusters were shuffled
     defaults = {"hand_half_turn": False, "pseudo_grouping": "slot mod 8", "keypose_alternatives": 0, "mode_guidance": 0.0,
-                "noise_scale": 1.0}
+                "noise_scale": 1.0, "data_collection_exploration": 0}
     for field in ("eval_set_version", "robot", "rig", "hand_half_turn", "pseudo_grouping", "keypose_alternatives",
-                  "mode_guidance", "noise_scale"):
+                  "mode_guidance", "noise_scale", "data_collection_exploration"):
         recorded = old.get(field, defaults.get(field))
         if recorded != run.get(field, defaults.get(field)):
             flag = {"hand_half_turn": "--hand-half-turn" if recorded else "--no-hand-half-turn",
                     "keypose_alternatives": f"--keypose-alternatives {recorded}",
-                    "mode_guidance": f"--mode-guidance {recorded}", "noise_scale": f"--noise-scale {recorded}"}.get(field)
+                    "mode_guidance": f"--mode-guidance {recorded}", "noise_scale": f"--noise-scale {recorded}",
+                    "data_collection_exploration": f"--data-collection-exploration {recorded}"}.get(field)
             match = f" (or {flag} to resume it)" if flag else ""
             raise RunMismatchError(f"{out} holds results of {field} {recorded!r}, this run has {run.get(field)!r}: "
                                    f"use another --out{match}")
