@@ -5,8 +5,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from actaim2.report.records import load_record, record_from_collection
-from actaim2.report.tables import dof_change_table, runs_table, samplers_table
+import pytest
+
+from actaim2.report.records import RecordError, load_record, record_from_collection
+from actaim2.report.tables import dof_change_table, label_table, runs_table, samplers_table
 
 
 def _dataset(folder: Path) -> None:
@@ -56,3 +58,24 @@ def test_a_dataset_becomes_a_record_and_its_sampler_tables(tmp_path):
     assert change["storage_furniture", "random"].endswith("| 10 | 40 % | 10 % | 0 % | 20 % | 30 % |")
     assert change["table", "grasp"].endswith("| 5 | 80 % | 0 % | 0 % | 0 % | 20 % |")
     assert "actaim2 collect --out ds" in runs_table([record])[2]
+
+
+def test_the_label_table_scores_the_visual_label_against_the_ground_truth(tmp_path):
+    """The cabinets' 3 successes are labelled right, one 10 % move is labelled a success (a
+    false positive); the table's one success is missed (a false negative)."""
+    _dataset(tmp_path / "ds")
+    with pytest.raises(RecordError, match="no visual labels"):
+        record_from_collection(tmp_path / "ds", tmp_path, "unlabelled", command="c")
+        label_table([load_record(tmp_path, "unlabelled")])
+    entries = [json.loads(t) for t in (tmp_path / "ds" / "index.jsonl").read_text().splitlines()]
+    false_positive = next(e["id"] for e in entries if e["dof_change"][1] == 0.1)
+    visual = [{"id": e["id"], "score": 0.0,
+               "success": (e["gt_success"] and e["category"] != "table") or e["id"] == false_positive}
+              for e in entries]
+    (tmp_path / "ds" / "labels.jsonl").write_text("".join(json.dumps(v) + "\n" for v in visual))
+    record_from_collection(tmp_path / "ds", tmp_path, "labelled", command="c")
+    rows = {line.split(" | ")[1]: line for line in label_table([load_record(tmp_path, "labelled")])[2:]}
+    assert rows["storage_furniture"].startswith("| train_seen (calibration) | storage_furniture | 2 | 11 | 4 |")
+    # 11 cabinet trajectories (the top-up counts: the label is judged on all), 1 wrong
+    assert "| 90.9 (below) | 92.9 | 80.0 | 100.0 |" in rows["storage_furniture"]
+    assert rows["table"].endswith("| 5 | 1 | 80.0 (below) | 50.0 (below) | - | 0.0 |")

@@ -142,6 +142,20 @@ def test_train_command_runs_all_phases_and_writes_loadable_checkpoints(dataset, 
     assert cli_main(["validate", str(shipped), "--data", str(dataset), "--noise-scale", "-1"]) == 2
 
 
+def test_another_training_seed_gives_another_checkpoint(dataset, tmp_path):
+    """``--seed`` replaces the configuration's seed: recorded in the checkpoint, other weights."""
+    record = perception_record(load_perception_config("ring5"))
+    weights = {}
+    for seed in (0, 1):
+        out = tmp_path / f"seed{seed}"
+        assert cli_main(["train", "--data", str(dataset), "--out", str(out), "--config", _config(tmp_path),
+                         "--phases", "selector", "--seed", str(seed), "--no-progress"]) == 0
+        policy = load_policy(out / "policy", record)
+        assert policy.meta["train_config"]["seed"] == seed
+        weights[seed] = policy.meta["weights_sha256"]
+    assert weights[0] != weights[1]
+
+
 def test_baseline_selector_reuses_the_goal_rvt_predictor(dataset, tmp_path):
     base = ["--data", str(dataset), "--config", _config(tmp_path), "--no-progress"]
     assert cli_main(["train", "--out", str(tmp_path / "goal"), "--phases", "predictor"] + base) == 0

@@ -57,6 +57,7 @@ PNG_LEVEL = 3  # zlib level; measured on collected pictures: 1.3 ms and 0.51 MB 
 
 INDEX_FILE = "index.jsonl"
 SKIPPED_FILE = "skipped.jsonl"  # not retried when collection resumes
+LABELS_FILE = "labels.jsonl"
 
 
 def encode_depth(depth_m: np.ndarray) -> np.ndarray:
@@ -291,7 +292,7 @@ class DatasetWriter:
 
 def write_labels(root: str | Path, labels: list[dict]) -> None:
     """Replace labels.jsonl atomically ({id, score, success} per trajectory)."""
-    path = Path(root) / "labels.jsonl"
+    path = Path(root) / LABELS_FILE
     tmp = path.with_suffix(".tmp")
     tmp.write_text("".join(json.dumps(label) + "\n" for label in labels))
     tmp.replace(path)
@@ -309,7 +310,7 @@ class DatasetReader:
         if self.info.get("format_version") != FORMAT_VERSION:
             raise ValueError(f"dataset format {self.info.get('format_version')} is not the supported {FORMAT_VERSION}")
         self.entries = _read_jsonl(self.root / INDEX_FILE)
-        labels = {d["id"]: d for d in _read_jsonl(self.root / "labels.jsonl")}
+        labels = {d["id"]: d for d in _read_jsonl(self.root / LABELS_FILE)}
         for e in self.entries:
             if e["id"] in labels:
                 e["score"] = labels[e["id"]]["score"]

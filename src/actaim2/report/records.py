@@ -10,7 +10,8 @@ A record is a folder ``results/<name>/`` in the repository:
 - ``results.jsonl.gz``: the evaluation's per-sample records (``eval/results.py``), gzipped;
   for a collection (``kind`` "collection"), one line per trajectory: its index entry without
   picture offsets and action (object, category, sampler, ground-truth success, DoF change,
-  whether the robot touched the object), and one per skipped trajectory (``skipped`` true).
+  whether the robot touched the object, the visual success label where the dataset is
+  labelled), and one per skipped trajectory (``skipped`` true).
 
 :func:`record_from_evaluation` makes one from an ``actaim2 evaluate`` output folder, reading the
 header lines of its ``tables.md`` (``evaluate_cli._header``) for the command, time and load;
@@ -27,7 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from actaim2.data.stats import RUNS_FILE
-from actaim2.data.storage import INDEX_FILE, SKIPPED_FILE
+from actaim2.data.storage import INDEX_FILE, LABELS_FILE, SKIPPED_FILE
 from actaim2.eval.results import RESULTS_FILE, RUN_FILE, machine_description
 
 RESULTS_DIR = "results"
@@ -122,7 +123,11 @@ def record_from_collection(dataset: Path, root: Path, name: str, *, command: str
         return [json.loads(t) for t in path.read_text().splitlines() if t.strip()] if path.exists() else []
 
     stages = lines(dataset / RUNS_FILE)
+    visual = {label["id"]: bool(label["success"]) for label in lines(dataset / LABELS_FILE)}
     samples = [{k: e[k] for k in COLLECTION_FIELDS if k in e} for e in lines(dataset / INDEX_FILE)]
+    for s in samples:
+        if s["id"] in visual:
+            s["visual_success"] = visual[s["id"]]
     samples += [{"id": s["id"], "sampler": s["sampler"], "category": s["category"], "skipped": True,
                  "reasons": s["reasons"]} for s in lines(dataset / SKIPPED_FILE)]
     meta = {"name": name, "kind": "collection", "command": command, "checkpoints": {},

@@ -11,6 +11,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from actaim2.data.splits import CALIBRATION_SPLITS
+from actaim2.data.success import label_metrics
 from actaim2.eval import tables as et
 from actaim2.eval.evalset import SPLIT_TITLES, SPLITS
 from actaim2.eval.methods import METHODS
@@ -98,6 +100,7 @@ def _evaluation(render: Callable[[list[dict], list[str]], list[str]], grouped: b
 SAMPLERS = ("random", "grasp", "gmm")
 MOVED = 0.05  # a trajectory "moved a part" when some DoF changed by more than this share of its range
 # Bins of a trajectory's largest DoF change (share of the range), for those that touched the object.
+LABEL_TARGETS = {"accuracy": 0.95, "balanced_accuracy": 0.90}  # the visual label's targets on every split and category
 CHANGE_BINS = ((0.0, 0.01), (0.01, MOVED), (MOVED, 0.3), (0.3, np.inf))
 
 
@@ -171,6 +174,44 @@ def dof_change_table(records: Sequence[Record]) -> list[str]:
     return lines
 
 
+def label_table(records: Sequence[Record]) -> list[str]:
+    """Per split and category, the visual success label against the ground truth on the
+    records' labelled trajectories: accuracy and balanced accuracy (the targets LABEL_TARGETS),
+    precision and recall. A split the label was calibrated on is marked so."""
+    samples = [s for r in _labelled(records) for s in r.samples if "visual_success" in s]
+    lines = ["| split | category | objects | trajectories | successes | accuracy | balanced accuracy "
+             "| precision | recall |", "|---" * 9 + "|"]
+    for split in sorted({s["split"] for s in samples}, key=_split_order):
+        title = f"{split} (calibration)" if split in CALIBRATION_SPLITS else split
+        for category, rows in _by_category([s for s in samples if s["split"] == split]):
+            m = label_metrics(np.array([s["visual_success"] for s in rows]), np.array([s["gt_success"] for s in rows]))
+            cells = " | ".join(_metric(m[k], LABEL_TARGETS.get(k)) for k in ("accuracy", "balanced_accuracy", "precision", "recall"))
+            lines.append(f"| {title} | {category} | {len({s['object_id'] for s in rows})} | {m['n']} "
+                         f"| {m['positives']} | {cells} |")
+    return lines
+
+
+def _labelled(records: Sequence[Record]) -> Sequence[Record]:
+    for r in records:
+        if r.meta.get("kind") != "collection":
+            raise RecordError(f"record {r.name} is not a collection")
+        if not any("visual_success" in s for s in r.samples):
+            raise RecordError(f"record {r.name} holds no visual labels (an unlabelled dataset)")
+    return records
+
+
+def _split_order(split: str) -> int:
+    order = ["train", "val", "test_unseen_instance", "test_unseen_category"]
+    return order.index(split) if split in order else len(order)
+
+
+def _metric(value: float, target: float | None) -> str:
+    """A rate in percent, with a mark where it misses its target."""
+    if not np.isfinite(value):
+        return "-"
+    return f"{100 * value:.1f}" + (" (below)" if target is not None and value < target else "")
+
+
 # marker table name -> renderer of the records the marker names
 TABLES: dict[str, Callable[[Sequence[Record]], list[str]]] = {
     "results": results_table,
@@ -185,4 +226,5 @@ TABLES: dict[str, Callable[[Sequence[Record]], list[str]]] = {
     "paper": lambda records: et.paper_table(),
     "samplers": samplers_table,
     "dof_change": dof_change_table,
+    "label": label_table,
 }

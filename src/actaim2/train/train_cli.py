@@ -34,6 +34,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--init-from", type=Path, help="start from this policy checkpoint (e.g. <run>/goal_rvt)")
     parser.add_argument("--resume", action="store_true", help="continue from <out>/train_state")
     parser.add_argument("--device", choices=["auto", "cpu", "cuda"], help="override the config's device")
+    parser.add_argument("--seed", type=int, help="override the config's training seed (initialisation, hold-out, "
+                                                 "batches, noise): one seed of a recipe")
     add_threads_argument(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
@@ -82,6 +84,8 @@ def main(args: argparse.Namespace) -> int:
         changes["phases"] = tuple(args.phases)
     if args.device:
         changes["device"] = args.device
+    if args.seed is not None:
+        changes["seed"] = args.seed
     config = dataclasses.replace(config, **changes)
     ctx = init_distributed(config.device)
     perception_config = load_perception_config(args.perception)
