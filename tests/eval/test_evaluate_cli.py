@@ -95,6 +95,23 @@ def test_smoke_interrupted_and_resumed(checkpoints, tmp_path) -> None:
     for name in ("embeddings_storage_furniture_000.png", "heatmaps_storage_furniture_000.png"):  # --figures 1
         assert (out / "figures" / name).stat().st_size > 1000 and f"(figures/{name})" in tables
 
+    # Re-running 4 of its samples by their seeds (what the protocol asks of 40 test samples).
+    again = tmp_path / "again"
+    rerun = [again if a == str(out) else a for a in command] + ["--reproduce", str(out), "--reproduce-samples", "4",
+                                                                "--figures", "0"]
+    result = subprocess.run(rerun, capture_output=True, text=True, timeout=900)
+    assert result.returncode == 0, result.stdout + result.stderr
+    reproduction = json.loads((again / "reproduction.json").read_text())
+    rerun_rows = records(again)
+    assert reproduction["samples"] == 4 == len(rerun_rows) and {r["key"] for r in rerun_rows} <= set(keys)
+    assert reproduction["same"] + len(reproduction["differ"]) == 4 and reproduction["same"] >= 3, reproduction
+    assert f"reproduced {reproduction['same']} of 4 outcomes" in result.stdout
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    refused = subprocess.run([again if a == str(out) else a for a in command] + ["--reproduce", str(empty)],
+                             capture_output=True, text=True, timeout=300)
+    assert refused.returncode == 2 and "holds neither results.jsonl" in refused.stderr
+
 
 def test_other_checkpoint_refused(checkpoints, tmp_path) -> None:
     """Results of two checkpoints for one row never mix: resuming with another is refused, naming both."""

@@ -23,6 +23,7 @@ Interrupt it at any time: the same command resumes, skipping finished samples. T
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shlex
 import sys
@@ -95,6 +96,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mode-guidance", type=float, default=None, metavar="W",
                         help="mode guidance weight of a policy row's translation (models/mode_guidance.py; default as "
                              "policy_node, 0 = off); recorded in run.json")
+    parser.add_argument("--reproduce", type=Path, metavar="DIR",
+                        help="re-run a seeded choice of DIR's samples (an evaluation folder, or a committed record "
+                             "under results/) with this command's settings and say how many outcomes agree "
+                             "(<out>/reproduction.json)")
+    parser.add_argument("--reproduce-samples", type=int, default=40, metavar="N",
+                        help="samples re-run with --reproduce (default 40)")
     parser.add_argument("--noise-scale", type=float, default=None, metavar="S",
                         help="spread of a policy row's mode draws relative to its selector's (ModeSelector.sample; "
                              "default as policy_node, 1 = as trained, 0 = each cluster's noise-free eps); recorded in run.json")
@@ -175,6 +182,7 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.eval.methods import ABLATIONS, PSEUDO_GROUPING, ablation_problem
     from actaim2.eval.protocol import append_ledger, guarded_ids, protected, read_ledger
     from actaim2.eval.protocol import check_run as check_protocol
+    from actaim2.eval.reproduce import REPRODUCTION_FILE, agreement, choose, reference_records
     from actaim2.eval.results import ResultLog, RunMismatchError, check_run
     from actaim2.eval.tables import report
     from actaim2.eval.tasks import plan_tasks
@@ -272,6 +280,21 @@ def main(args: argparse.Namespace) -> int:
         print(f"Data Collection: {len(skip['data_collection'])} object(s) have no collected trajectories in {args.data}; "
               f"left out of its row", file=sys.stderr)
     tasks = plan_tasks({m: clusters[m] for m in methods}, objects, preset.counts, skip)
+    reference: dict[str, dict] = {}
+    if args.reproduce is not None:
+        try:
+            if args.reproduce_samples < 1:
+                raise ValueError(f"--reproduce-samples {args.reproduce_samples} is not a count of samples")
+            reference = reference_records(args.reproduce)
+        except (ValueError, FileNotFoundError) as exc:
+            print(f"actaim2 evaluate: --reproduce: {exc}", file=sys.stderr)
+            return 2
+        chosen = set(choose([t.key for t in tasks if t.key in reference], args.reproduce_samples))
+        if not chosen:
+            print(f"actaim2 evaluate: --reproduce: none of this command's samples are in {args.reproduce}",
+                  file=sys.stderr)
+            return 2
+        tasks = [t for t in tasks if t.key in chosen]
     log = ResultLog(args.out)
     todo = [t for t in tasks if t.key not in log.done]
     print(f"{len(tasks)} samples ({preset.name}: {len(objects)} objects, rows {', '.join(methods)}); "
@@ -297,6 +320,11 @@ def main(args: argparse.Namespace) -> int:
         if videos > 0:
             text += video_table(write_videos(worker, tasks, log.records, args.out / "videos", videos), args.out)
     (args.out / "tables.md").write_text(text)
+    if reference:
+        agreed = agreement(reference, log.records, [t.key for t in tasks])
+        (args.out / REPRODUCTION_FILE).write_text(json.dumps({"reference": str(args.reproduce), **agreed}, indent=2))
+        print(f"reproduced {agreed['same']} of {agreed['samples']} outcomes of {args.reproduce} "
+              f"({agreed['not_run']} not run); {args.out / REPRODUCTION_FILE}")
     print(f"{len(todo) - errors} samples run in {seconds:.0f} s ({errors} errors, retried by a rerun); tables: {args.out / 'tables.md'}")
     return 0 if errors == 0 else 1
 
