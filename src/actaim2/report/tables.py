@@ -201,7 +201,7 @@ def _labelled(records: Sequence[Record]) -> Sequence[Record]:
 
 
 def _split_order(split: str) -> int:
-    order = ["train", "val", "test_unseen_instance", "test_unseen_category"]
+    order = ["train", "train_seen", "val", "test_unseen_instance", "test_unseen_category"]
     return order.index(split) if split in order else len(order)
 
 
