@@ -252,6 +252,21 @@ def test_protocol_compare_applies_both_rules_over_seeds(tmp_path, capsys) -> Non
     assert cli(["protocol", "compare", str(tmp_path / "none")]) == 2
     assert "no results.jsonl" in capsys.readouterr().err
 
+    # The baseline evaluated once in a folder of its own: the same verdict as beside the method.
+    split = tmp_path / "split"
+    for k, run in enumerate(runs):
+        records = [json.loads(t) for t in (run / "results.jsonl").read_text().splitlines()]
+        for method in ("actaim2", "data_collection"):
+            (split / method / f"s{k}").mkdir(parents=True)
+            (split / method / f"s{k}" / "results.jsonl").write_text(
+                "".join(json.dumps(r) + "\n" for r in records if r["method"] == method))
+    separate = ["protocol", "compare", *(str(split / "actaim2" / f"s{k}") for k in range(2)), "--rounds", "200",
+                "--baseline-from", *(str(split / "data_collection" / f"s{k}") for k in range(2))]
+    assert cli(separate) == 0
+    assert f"| SSR, paired scenes | {exact} | {exact} | yes |" in capsys.readouterr().out
+    assert cli(separate + [str(split / "data_collection" / "s0")]) == 2
+    assert "3 folders for 2 runs" in capsys.readouterr().err
+
 
 @pytest.mark.skipif(not COMMITTED.with_suffix(".json").is_file(), reason="no committed checkpoint")
 def test_a_final_run_under_a_lock_runs_once_per_ledger_line(tmp_path, capsys) -> None:

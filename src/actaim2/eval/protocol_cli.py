@@ -64,6 +64,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     compare.add_argument("--method", default="actaim2", help="the row judged (default actaim2)")
     compare.add_argument("--baseline", default="data_collection",
                          help="the row it must beat (default data_collection)")
+    compare.add_argument("--baseline-from", type=Path, nargs="+", metavar="DIR",
+                         help="take the baseline's records from these evaluation folders instead (one "
+                              "for every run, or one per run in the same order): a baseline evaluated "
+                              "once on the same scenes and compared with several candidates")
     compare.add_argument("--halvings", type=int, default=100, help="random halvings (>= 100)")
     compare.add_argument("--rounds", type=int, default=2000, help="bootstrap rounds")
     compare.add_argument("--out", type=Path, help="also write the markdown there")
@@ -117,10 +121,19 @@ def _compare(args: argparse.Namespace) -> int:
     from actaim2.eval.results import RESULTS_FILE, ResultLog
 
     try:
-        missing = [str(run) for run in args.runs if not (run / RESULTS_FILE).is_file()]
+        extra = args.baseline_from or []
+        if len(extra) not in (0, 1, len(args.runs)):
+            raise ValueError(f"--baseline-from: {len(extra)} folders for {len(args.runs)} runs (give one, or "
+                             f"one per run)")
+        missing = [str(run) for run in [*args.runs, *extra] if not (run / RESULTS_FILE).is_file()]
         if missing:
             raise ValueError(f"no {RESULTS_FILE} in {', '.join(missing)}")
         runs = [list(ResultLog(run).records.values()) for run in args.runs]
+        if extra:
+            baselines = [[r for r in ResultLog(d).records.values() if r["method"] == args.baseline]
+                         for d in (extra * len(args.runs) if len(extra) == 1 else extra)]
+            runs = [[r for r in records if r["method"] != args.baseline] + base
+                    for records, base in zip(runs, baselines)]
         text = "\n".join(comparison(runs, args.method, args.baseline, args.halvings, args.rounds))
     except ValueError as exc:
         print(f"actaim2 protocol compare: {exc}", file=sys.stderr)
