@@ -74,6 +74,9 @@ def test_data_collection_row_fits_and_executes(tmp_path) -> None:
         assert "error" not in row, row
         assert (row["group"], row["repetition"]) == pseudo_group(obj.key, task.slot)
         assert not row["note"].startswith("no sample: no sampler")
+        if not row["note"].startswith("no sample"):  # its own mode: the GMM cluster the slot drew from
+            k = samplers["storage_furniture_000"].n_clusters
+            assert (row["gmm_cluster"], row["gmm_clusters"]) == (task.slot % k, k)
     # an object the dataset does not hold has no sampler: the sample fails with the reason (the CLI plans none)
     missing = worker.run(plan_tasks({"data_collection": 0}, [EvalObject("heldout_category", "safe", 0)],
                                     SampleCounts(1, 1, 0))[0])

@@ -15,6 +15,7 @@ from actaim2.cli import main as cli
 from actaim2.eval.evalset import EVAL_SET_VERSION
 from actaim2.eval.protocol import (
     ProtocolLock,
+    component_groups,
     append_ledger,
     check_run,
     file_sha256,
@@ -229,7 +230,7 @@ def _write_run(folder: Path, seed: int) -> None:
                 mode = (["joint_0", -1] if group < 2 else ["joint_0", 1]) if works else None
                 lines.append({"key": f"{method}|{obj}|{slot}", "method": method, "object": obj,
                               "split": "test_unseen_category", "category": category,
-                              "reset_seed": 1000 * seed + slot, "success": works, "group": group,
+                              "slot": slot, "reset_seed": 1000 * seed + slot, "success": works, "group": group,
                               "repetition": repetition, "mode": mode})
     (folder / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in lines))
 
@@ -251,6 +252,29 @@ def test_protocol_compare_applies_both_rules_over_seeds(tmp_path, capsys) -> Non
     assert "| -100.0 [-100.0, -100.0] | no |" in capsys.readouterr().out
     assert cli(["protocol", "compare", str(tmp_path / "none")]) == 2
     assert "no results.jsonl" in capsys.readouterr().err
+
+    assert "by its GMM components" not in text  # pseudo-clusters only: no component was recorded
+
+    # Data Collection whose GMM has 2 components: slot s drew from component s mod 2, and
+    # component 0 always closes the object: by its own components it has a 1st mode that always
+    # works and a 2nd that never does.
+    comp = tmp_path / "components"
+    records = [json.loads(t) for t in (runs[0] / "results.jsonl").read_text().splitlines()]
+    for r in records:
+        if r["method"] == "data_collection":
+            works = r["slot"] % 2 == 0
+            r.update(gmm_clusters=2, success=works, mode=["joint_0", -1] if works else None)
+    comp.mkdir()
+    (comp / "results.jsonl").write_text("".join(json.dumps(r) + "\n" for r in records))
+    assert cli(["protocol", "compare", str(comp), "--rounds", "200"]) == 0
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| 2nd")]
+    assert len(rows) == 2 and "by its GMM components" in rows[1]
+    by_component = rows[1]
+    assert f"| {exact} | {exact} | yes |" in by_component  # its 2nd component never succeeds
+    grouped = component_groups(records, "data_collection")
+    assert all(r["group"] == r["slot"] % 2 and r["repetition"] == r["slot"] // 2
+               for r in grouped if r["method"] == "data_collection")
+    assert [r for r in grouped if r["method"] == "actaim2"] == [r for r in records if r["method"] == "actaim2"]
 
     # The baseline evaluated once in a folder of its own: the same verdict as beside the method.
     split = tmp_path / "split"

@@ -22,6 +22,7 @@ import torch
 from actaim2.control.ik import IKSolver
 from actaim2.data.actions import Sampler
 from actaim2.data.collect import ik_reachable
+from actaim2.data.gmm_sampler import GMMAdaptiveSampler
 from actaim2.data.object_cloud import ObjectCloud
 from actaim2.data.trajectory import Observation
 from actaim2.eval.evalset import pseudo_order_seed
@@ -200,11 +201,15 @@ class SamplerSource:
         group, repetition = task_group(task)
         if sampler is None:
             raise NoSample(f"no sampler for {task.obj.key}", group, repetition)
+        # A GMM-adaptive sampler's own modes: the cluster this slot draws from, recorded so that
+        # its Mode SSR can be counted by its components as well as by pseudo-clusters.
+        details = ({"gmm_cluster": sampler.cluster_of(task.slot), "gmm_clusters": sampler.n_clusters}
+                   if isinstance(sampler, GMMAdaptiveSampler) else {})
         for _ in range(self.max_samples):
             action = sampler.sample(scene.cloud, scene.rng, task.slot)
             if action is None:
                 raise NoSample("sampler found no action", group, repetition)
             if ik_reachable(self.screen, self.home, action, scene.rng):
                 keyposes = action.keyposes()
-                return Plan(group, repetition, lambda phase, closed: keyposes[phase : phase + 1])
+                return Plan(group, repetition, lambda phase, closed: keyposes[phase : phase + 1], details)
         raise NoSample("no sampled action passed the IK check", group, repetition)
