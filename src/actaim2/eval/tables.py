@@ -308,7 +308,7 @@ def report(records: Sequence[dict], methods: list[str], header: list[str]) -> st
     lines = list(header)
     lines += ["", "## Table 1: sample success rate (SSR)"] + ssr_table(records, done)
     lines += ["", "## Table 2: Mode SSR (1st and 2nd modes)",
-              "", "Mode SSR: modes ranked over all successes of an object; each mode's cluster chosen on half A, "
+              "", "Mode SSR: modes ranked by their successes on half A of an object; each mode's cluster chosen on half A, "
                   f"its rate measured on half B (docs/evaluation.md).{without}"] + mode_table(grouped, done)
     lines += ["", "## Appendix: objects with more than two modes (Mode SSR of modes 1-4, half B)", ""]
     lines += many_modes_table(grouped, done)
