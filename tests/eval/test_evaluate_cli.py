@@ -18,7 +18,6 @@ import pytest
 
 from actaim2.eval.methods import PSEUDO_GROUPING
 from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, NOISE_SCALE
-
 from tiny_checkpoint import CLUSTERS, make_checkpoint, make_encoder
 
 SMOKE_OBJECTS = 3  # presets.PRESETS["smoke"]: storage_furniture 0 and 8, box 0

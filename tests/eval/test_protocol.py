@@ -15,9 +15,9 @@ from actaim2.cli import main as cli
 from actaim2.eval.evalset import EVAL_SET_VERSION
 from actaim2.eval.protocol import (
     ProtocolLock,
-    component_groups,
     append_ledger,
     check_run,
+    component_groups,
     file_sha256,
     guarded_ids,
     protected,

@@ -176,9 +176,17 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.data.real_objects import partnet_root
     from actaim2.data.splits import GENERATED, catalogue
     from actaim2.eval.checkpoints import describe, perception_of
-    from actaim2.eval.data_collection import EXPLORATION_DIR, data_collection_samplers, explored_samplers
-    from actaim2.eval.evalset import (EVAL_SET_VERSION, catalogue_objects, folder_objects,
-                                      partnet_objects)
+    from actaim2.eval.data_collection import (
+        EXPLORATION_DIR,
+        data_collection_samplers,
+        explored_samplers,
+    )
+    from actaim2.eval.evalset import (
+        EVAL_SET_VERSION,
+        catalogue_objects,
+        folder_objects,
+        partnet_objects,
+    )
     from actaim2.eval.methods import ABLATIONS, PSEUDO_GROUPING, ablation_problem
     from actaim2.eval.protocol import append_ledger, guarded_ids, protected, read_ledger
     from actaim2.eval.protocol import check_run as check_protocol
@@ -189,7 +197,12 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.eval.worker import EvalWorker, WorkerSetup
     from actaim2.parallel import ray_available
     from actaim2.perception.config import load_perception_config
-    from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, MODE_GUIDANCE, NOISE_SCALE, check_noise_scale
+    from actaim2.policy.inference import (
+        KEYPOSE_ALTERNATIVES,
+        MODE_GUIDANCE,
+        NOISE_SCALE,
+        check_noise_scale,
+    )
 
     half_turn = POLICY_PLANNER.hand_half_turn if args.hand_half_turn is None else args.hand_half_turn
     alternatives = KEYPOSE_ALTERNATIVES if args.keypose_alternatives is None else args.keypose_alternatives
