@@ -16,6 +16,7 @@ from actaim2.data.success import label_metrics
 from actaim2.eval import tables as et
 from actaim2.eval.evalset import SPLIT_TITLES, SPLITS
 from actaim2.eval.methods import METHODS
+from actaim2.eval.protocol import comparison
 from actaim2.eval.stats import Rate
 from actaim2.report.records import Record, RecordError
 
@@ -100,6 +101,7 @@ def _evaluation(render: Callable[[list[dict], list[str]], list[str]], grouped: b
 SAMPLERS = ("random", "grasp", "gmm")
 MOVED = 0.05  # a trajectory "moved a part" when some DoF changed by more than this share of its range
 # Bins of a trajectory's largest DoF change (share of the range), for those that touched the object.
+COMPARE_HALVINGS, COMPARE_ROUNDS = 100, 2000  # the protocol's random halvings and bootstrap rounds
 LABEL_TARGETS = {"accuracy": 0.95, "balanced_accuracy": 0.90}  # the visual label's targets on every split and category
 CHANGE_BINS = ((0.0, 0.01), (0.01, MOVED), (MOVED, 0.3), (0.3, np.inf))
 
@@ -212,6 +214,20 @@ def _metric(value: float, target: float | None) -> str:
     return f"{100 * value:.1f}" + (" (below)" if target is not None and value < target else "")
 
 
+def compare_table(records: Sequence[Record]) -> list[str]:
+    """ActAIM2 against Data Collection by the protocol's rules (``eval.protocol.comparison``): each
+    record holding ActAIM2 samples is one seed's run; Data Collection's samples come from the same
+    record, or from the records that hold no ActAIM2 samples (a baseline run once on the same
+    scenes, shared by every seed)."""
+    runs = [r for r in records if any(s["method"] == "actaim2" for s in r.samples)]
+    if not runs:
+        raise RecordError(f"none of {[r.name for r in records]} holds ActAIM2 samples")
+    shared = [s for r in records if r not in runs for s in r.samples if s["method"] == "data_collection"]
+    lines = comparison([r.samples + shared for r in runs], "actaim2", "data_collection",
+                       COMPARE_HALVINGS, COMPARE_ROUNDS)[2:]
+    return [f"**{line[3:]}**" if line.startswith("## ") else line for line in lines]  # splits: not doc headings
+
+
 # marker table name -> renderer of the records the marker names
 TABLES: dict[str, Callable[[Sequence[Record]], list[str]]] = {
     "results": results_table,
@@ -227,4 +243,5 @@ TABLES: dict[str, Callable[[Sequence[Record]], list[str]]] = {
     "samplers": samplers_table,
     "dof_change": dof_change_table,
     "label": label_table,
+    "compare": compare_table,
 }
