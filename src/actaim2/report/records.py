@@ -16,7 +16,8 @@ A record is a folder ``results/<name>/`` in the repository:
 :func:`record_from_evaluation` makes one from an ``actaim2 evaluate`` output folder, reading the
 header lines of its ``tables.md`` (``evaluate_cli._header``) for the command, time and load;
 :func:`record_from_collection` from an ``actaim2 collect`` dataset (its ``dataset.json``, stage
-runs and index).
+runs and index); :func:`record_from_validation` from an ``actaim2 validate`` folder (kind
+"validation": one line per eps source and keypose with the predictor's errors).
 """
 from __future__ import annotations
 
@@ -34,6 +35,7 @@ from actaim2.eval.results import RESULTS_FILE, RUN_FILE, machine_description
 RESULTS_DIR = "results"
 RECORD_FILE = "record.json"
 SAMPLES_FILE = "results.jsonl.gz"
+VALIDATION_FILE = "validation.json"  # actaim2 validate's report (train/validation.py)
 MAX_BYTES = 2 * 1024 * 1024  # a record's files together stay under this
 
 _COMMAND = re.compile(r"^Command: `(?P<command>.*)`$")
@@ -139,6 +141,26 @@ def record_from_collection(dataset: Path, root: Path, name: str, *, command: str
             "machine": machine_description(), "cores": os.cpu_count(),
             "note": note, "source": source or str(dataset)}
     return _write_record(root, name, meta, [json.dumps(s, sort_keys=True) for s in samples])
+
+
+def record_from_validation(run_dir: Path, root: Path, name: str, *, command: str,
+                           note: str = "", source: str = "") -> Path:
+    """Write ``root/results/<name>/`` from an ``actaim2 validate`` folder (its ``validation.json``);
+    ``command`` is the validate command (the report does not keep it). One line per (eps fed,
+    keypose) with the predictor's errors; the selector's figures in the record. Returns the
+    folder."""
+    report = json.loads((Path(run_dir) / VALIDATION_FILE).read_text())
+    lines = [json.dumps({"eps": eps, "keypose": keypose, **figures}, sort_keys=True)
+             for eps, by_keypose in report["actions"].items() for keypose, figures in by_keypose.items()]
+    meta = {"name": name, "kind": "validation", "command": command,
+            "checkpoints": {"actaim2": {"path": report["checkpoint"], "weights_sha256": report["weights_sha256"],
+                                        "dataset_digest": report["dataset_digest"]}},
+            "dataset": {"path": report["dataset"]}, "split": report["split"],
+            "noise_scale": report["noise_scale"], "selector": report["selector"], "samples": len(lines),
+            "seconds": 0, "workers": 0, "load_average": os.getloadavg()[0],
+            "machine": machine_description(), "cores": os.cpu_count(), "note": note,
+            "source": source or str(run_dir)}
+    return _write_record(root, name, meta, lines)
 
 
 def _write_record(root: Path, name: str, meta: dict, lines: list[str]) -> Path:

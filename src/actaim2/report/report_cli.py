@@ -4,6 +4,7 @@
     actaim2 report --check          # exit 1: a table differs from its records, a record is missing
     actaim2 report --add runs/eval_x --name NAME   # an evaluation folder -> results/NAME
     actaim2 report --add data/ds --name NAME --command "actaim2 collect ..."   # a collected dataset
+    actaim2 report --add runs/x --name NAME --command "actaim2 validate ..."   # validation figures
 """
 from __future__ import annotations
 
@@ -21,8 +22,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--add", type=Path, metavar="RUN_DIR",
                         help="make a record of this actaim2 evaluate output (or actaim2 collect "
                              "dataset), then regenerate")
-    parser.add_argument("--command", help="the collect command that made the dataset (--add of a "
-                                          "dataset: a dataset does not keep its command line)")
+    parser.add_argument("--command", help="the collect or validate command that made the dataset or validation "
+                                          "figures (--add of either: they do not keep their command line)")
     parser.add_argument("--name", help="the record's folder name under results/ (with --add)")
     parser.add_argument("--machine",
                         help="the run's machine (with --add; default: tables.md's, else this)")
@@ -34,8 +35,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    from actaim2.eval.results import RESULTS_FILE
     from actaim2.report.markers import blocks, rewrite
-    from actaim2.report.records import RecordError, record_from_collection, record_from_evaluation
+    from actaim2.report.records import (
+        VALIDATION_FILE,
+        RecordError,
+        record_from_collection,
+        record_from_evaluation,
+        record_from_validation,
+    )
 
     root = args.root.resolve()
     try:
@@ -43,7 +51,13 @@ def main(args: argparse.Namespace) -> int:
             if not args.name:
                 print("report: --add needs --name", file=sys.stderr)
                 return 2
-            if (args.add / "dataset.json").is_file():
+            if (args.add / VALIDATION_FILE).is_file() and not (args.add / RESULTS_FILE).is_file():
+                if not args.command:
+                    print("report: --add of a validation needs --command", file=sys.stderr)
+                    return 2
+                out = record_from_validation(args.add, root, args.name, command=args.command,
+                                             note=args.note, source=args.source)
+            elif (args.add / "dataset.json").is_file():
                 if not args.command:
                     print("report: --add of a dataset needs --command", file=sys.stderr)
                     return 2

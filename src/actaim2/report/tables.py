@@ -100,9 +100,9 @@ def _evaluation(render: Callable[[list[dict], list[str]], list[str]], grouped: b
 
 SAMPLERS = ("random", "grasp", "gmm")
 MOVED = 0.05  # a trajectory "moved a part" when some DoF changed by more than this share of its range
-# Bins of a trajectory's largest DoF change (share of the range), for those that touched the object.
 COMPARE_HALVINGS, COMPARE_ROUNDS = 100, 2000  # the protocol's random halvings and bootstrap rounds
 LABEL_TARGETS = {"accuracy": 0.95, "balanced_accuracy": 0.90}  # the visual label's targets on every split and category
+# Bins of a trajectory's largest DoF change (share of the range), for those that touched the object.
 CHANGE_BINS = ((0.0, 0.01), (0.01, MOVED), (MOVED, 0.3), (0.3, np.inf))
 
 
@@ -228,6 +228,26 @@ def compare_table(records: Sequence[Record]) -> list[str]:
     return [f"**{line[3:]}**" if line.startswith("## ") else line for line in lines]  # splits: not doc headings
 
 
+def errors_table(records: Sequence[Record]) -> list[str]:
+    """Per validation record (``actaim2 validate``), the predictor's errors on the split's
+    visually-labelled successes per keypose: translation median / 90th percentile (mm) and
+    rotation median (deg), fed the selector's reconstruction of z and the true z."""
+    lines = ["| record | split | keypose | keyframes | translation, reconstructed z: median / p90 (mm) "
+             "| translation, true z: median / p90 (mm) | rotation median, reconstructed / true z (deg) |",
+             "|---" * 7 + "|"]
+    for r in records:
+        if r.meta.get("kind") != "validation":
+            raise RecordError(f"record {r.name} is not a validation")
+        rows = {(s["eps"], s["keypose"]): s for s in r.samples}
+        for keypose in dict.fromkeys(s["keypose"] for s in r.samples):
+            rec, true = rows["reconstructed", keypose], rows["true", keypose]
+            lines.append(f"| `{r.name}` | {r.meta['split']} | {keypose} | {rec['keyframes']} "
+                         f"| {rec['translation_median_mm']:.0f} / {rec['translation_p90_mm']:.0f} "
+                         f"| {true['translation_median_mm']:.0f} / {true['translation_p90_mm']:.0f} "
+                         f"| {rec['rotation_median_deg']:.1f} / {true['rotation_median_deg']:.1f} |")
+    return lines
+
+
 # marker table name -> renderer of the records the marker names
 TABLES: dict[str, Callable[[Sequence[Record]], list[str]]] = {
     "results": results_table,
@@ -244,4 +264,5 @@ TABLES: dict[str, Callable[[Sequence[Record]], list[str]]] = {
     "dof_change": dof_change_table,
     "label": label_table,
     "compare": compare_table,
+    "errors": errors_table,
 }
