@@ -122,6 +122,8 @@ def test_a_small_dataset_and_an_evaluation_run(tmp_path, make_trajectory):
     assert evaluated[0].figures["heatmaps"].shape == (32, 64, 3) and evaluated[2].figures is evaluated[0].figures
     write_recording(evaluated, tmp_path / "run.rrd", "run")
     assert (tmp_path / "run.rrd").stat().st_size > 0
+    record = ROOT / "results" / "d2ca9126_seen"  # a committed record of a run: its results.jsonl.gz
+    assert kind_of(record) == "evaluation" and len(list(evaluation_samples(record, 5))) == 5
 
     # the command itself: serves the dataset's recording and page on loopback until interrupted
     proc = subprocess.Popen([sys.executable, "-m", "actaim2.cli", "view", str(dataset), "--no-browser", "--port", "0"],

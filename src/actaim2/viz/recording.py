@@ -55,57 +55,49 @@ def gripper_parts(keypose: Keypose) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     return centres, half, np.asarray(keypose.quat_xyzw, float), origin, rotation @ np.array([0.0, 0.0, 0.08])
 
 
-def _log_keyposes(rec, keyposes: list[Keypose]) -> None:
+def _keypose_entities(keyposes: list[Keypose]) -> dict[str, object]:
     import rerun as rr
 
     from actaim2.viz.foxglove_live import keypose_label
 
-    rec.log("world/keyposes", rr.Clear(recursive=True))
+    entities: dict[str, object] = {}
     for n, keypose in enumerate(keyposes):
         centres, half, quat, origin, approach = gripper_parts(keypose)
         colour = KEYPOSE_COLOURS[keypose.phase % len(KEYPOSE_COLOURS)]
-        path = f"world/keyposes/{n}"
-        rec.log(f"{path}/gripper", rr.Boxes3D(centers=centres, half_sizes=half, quaternions=[rr.Quaternion(xyzw=quat)] * 3,
-                                              colors=colour, fill_mode="solid"))
-        rec.log(f"{path}/approach", rr.Arrows3D(origins=[origin], vectors=[approach], colors=colour, radii=0.003,
-                                                labels=[keypose_label(keypose, str(n))], show_labels=True))
+        entities[f"world/keyposes/{n}/gripper"] = rr.Boxes3D(
+            centers=centres, half_sizes=half, quaternions=[rr.Quaternion(xyzw=quat)] * 3, colors=colour, fill_mode="solid")
+        entities[f"world/keyposes/{n}/approach"] = rr.Arrows3D(
+            origins=[origin], vectors=[approach], colors=colour, radii=0.003, labels=[keypose_label(keypose, str(n))],
+            show_labels=True)
     if keyposes:
-        rec.log("world/keyposes/path", rr.LineStrips3D([np.array([k.position for k in keyposes])], colors=(200, 200, 200),
-                                                       radii=0.0015))
+        entities["world/keyposes/path"] = rr.LineStrips3D([np.array([k.position for k in keyposes])], colors=(200, 200, 200),
+                                                          radii=0.0015)
+    return entities
 
 
-def _log_sample(rec, index: int, sample: Sample, figure_names: list[str], new_figures: bool,
-                rng: np.random.Generator) -> None:
+def _entities(sample: Sample, rng: np.random.Generator) -> dict[str, object]:
+    """Entity path -> what to log there for ``sample`` (its figures apart)."""
     import rerun as rr
 
-    rec.set_time(TIMELINE, sequence=index)
-    rec.log("summary", rr.TextDocument(summary_markdown(sample), media_type=rr.MediaType.MARKDOWN))
+    entities: dict[str, object] = {
+        "summary": rr.TextDocument(summary_markdown(sample), media_type=rr.MediaType.MARKDOWN)}
     for key in ("success", "cluster"):
         value = sample.summary.get(key)
         if isinstance(value, bool | int | float | np.integer | np.floating):
-            rec.log(f"outcome/{key}", rr.Scalars(float(value)))
-    if sample.cloud is None:
-        rec.log("world/cloud", rr.Clear(recursive=False))
-    else:
+            entities[f"outcome/{key}"] = rr.Scalars(float(value))
+    if sample.cloud is not None:
         xyz, rgb = sample.cloud
         if len(xyz) > MAX_POINTS:
             keep = rng.choice(len(xyz), MAX_POINTS, replace=False)
             xyz, rgb = xyz[keep], None if rgb is None else rgb[keep]
-        rec.log("world/cloud", rr.Points3D(xyz, colors=rgb, radii=POINT_RADIUS))
-    _log_keyposes(rec, sample.keyposes)
+        entities["world/cloud"] = rr.Points3D(xyz, colors=rgb, radii=POINT_RADIUS)
+    entities.update(_keypose_entities(sample.keyposes))
     for observation in OBSERVATIONS:
-        rec.log(f"pictures/{observation}", rr.Clear(recursive=True))
         for camera, picture in sample.pictures.get(observation, {}).items():
-            rec.log(f"pictures/{observation}/{camera}", rr.Image(picture))
-        rec.log(f"views/{observation}", rr.Clear(recursive=True))
-        for view, picture in zip(VIEWS, sample.views.get(observation, [None] * len(VIEWS)), strict=True):
-            if picture is not None:
-                rec.log(f"views/{observation}/{view}", rr.Image(picture))
-    for name in figure_names if new_figures else ():
-        if name in sample.figures:
-            rec.log(f"figures/{name}", rr.Image(sample.figures[name]))
-        else:
-            rec.log(f"figures/{name}", rr.Clear(recursive=False))
+            entities[f"pictures/{observation}/{camera}"] = rr.Image(picture)
+        for view, picture in zip(VIEWS, sample.views.get(observation, []), strict=False):
+            entities[f"views/{observation}/{view}"] = rr.Image(picture)
+    return entities
 
 
 def blueprint(figure_names: list[str]):
@@ -124,12 +116,13 @@ def blueprint(figure_names: list[str]):
                      rrb.TimeSeriesView(origin="outcome", name="outcome and cluster")),
         column_shares=[3, 2])
     return rrb.Blueprint(rrb.Vertical(top, rrb.Tabs(*tabs), row_shares=[3, 2]),
-                         rrb.TimePanel(state="collapsed"), rrb.SelectionPanel(state="collapsed"),
-                         rrb.BlueprintPanel(state="collapsed"))
+                         rrb.TimePanel(state="collapsed", timeline=TIMELINE, play_state="paused"),
+                         rrb.SelectionPanel(state="collapsed"), rrb.BlueprintPanel(state="collapsed"))
 
 
 def write_recording(samples: list[Sample], path: Path, name: str) -> None:
-    """Write ``samples`` as an .rrd file with the layout of :func:`blueprint`."""
+    """Write ``samples`` as an .rrd file with the layout of :func:`blueprint`: each sample's
+    entities at its step, and a clear at that step for what the previous sample had and it lacks."""
     import rerun as rr
 
     if not samples:
@@ -139,9 +132,18 @@ def write_recording(samples: list[Sample], path: Path, name: str) -> None:
     rec.save(path, default_blueprint=blueprint(figure_names))
     rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     rng = np.random.default_rng(0)
+    shown: set[str] = set()
     for index, sample in enumerate(samples):
+        rec.set_time(TIMELINE, sequence=index)
+        entities = _entities(sample, rng)
+        figures = {f"figures/{key}" for key in sample.figures}
         # samples of one object share their figures: logged again only when they change
-        new_figures = index == 0 or sample.figures is not samples[index - 1].figures
-        _log_sample(rec, index, sample, figure_names, new_figures, rng)
+        if index == 0 or sample.figures is not samples[index - 1].figures:
+            entities.update({f"figures/{key}": rr.Image(picture) for key, picture in sample.figures.items()})
+        for entity in sorted(shown - set(entities) - figures):
+            rec.log(entity, rr.Clear(recursive=False))
+        for entity, archetype in entities.items():
+            rec.log(entity, archetype)
+        shown = set(entities) | figures
     rec.flush()
     rec.disconnect()

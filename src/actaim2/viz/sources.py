@@ -3,10 +3,11 @@
 * a dataset (``dataset.json``): one sample per trajectory, its O_init and O_final pictures,
   their fused cloud and views (recomputed with the dataset's perception configuration), the
   keyposes, the ground-truth outcome, the visual label and the GMM sampler's cluster;
-* an evaluation run (``results.jsonl``): one sample per executed sample, its outcome, cluster,
-  confidences and moved fractions, with the run's figures of its object (``figures/``: the
-  heatmaps of a re-executed sample per phase and view, the eps embedding); no pictures are kept
-  per sample, so there is no cloud;
+* an evaluation run (``results.jsonl``), or a record of one under ``results/`` (its
+  ``results.jsonl.gz``): one sample per executed sample, its outcome, cluster, confidences and
+  moved fractions, with the run's figures of its object (``figures/``: the heatmaps of a
+  re-executed sample per phase and view, the eps embedding); no pictures are kept per sample,
+  so there is no cloud;
 * bags (a ``.mcap`` / ``.db3`` file, a bag folder, or a folder of bag folders): one sample per
   teleop episode (``actaim2.finetune.bag_episodes``): the rig's clouds at START and at END as
   pictures, their fused cloud and views (robot included unless a robot is named to remove),
@@ -35,11 +36,19 @@ def kind_of(path: Path) -> str:
     """``dataset``, ``evaluation`` or ``bags``; ValueError for anything else."""
     if (path / "dataset.json").exists():
         return "dataset"
-    if (path / "results.jsonl").exists():
+    if _results_file(path) is not None:
         return "evaluation"
     if bag_paths(path):
         return "bags"
     raise ValueError(f"{path} is neither a dataset (dataset.json), an evaluation run (results.jsonl) nor rosbag2 bags")
+
+
+def _results_file(path: Path) -> Path | None:
+    """An evaluation run's results, or a record's (``actaim2.report.records``)."""
+    from actaim2.eval.results import RESULTS_FILE
+    from actaim2.report.records import SAMPLES_FILE
+
+    return next((path / name for name in (RESULTS_FILE, SAMPLES_FILE) if (path / name).is_file()), None)
 
 
 def bag_paths(path: Path) -> list[Path]:
@@ -90,12 +99,16 @@ def dataset_samples(root: Path, limit: int) -> Iterator[Sample]:
 
 
 def evaluation_samples(run: Path, limit: int) -> Iterator[Sample]:
+    import gzip
+
     from PIL import Image
 
-    from actaim2.eval.results import RESULTS_FILE
-
     figures: dict[str, dict[str, np.ndarray]] = {}  # object -> its figures, one dict shared by its samples
-    lines = [line for line in (run / RESULTS_FILE).read_text().splitlines() if line.strip()]
+    path = _results_file(run)
+    if path is None:
+        raise ValueError(f"{run} holds no evaluation results")
+    text = gzip.decompress(path.read_bytes()).decode() if path.suffix == ".gz" else path.read_text()
+    lines = [line for line in text.splitlines() if line.strip()]
     for line in lines[:limit]:
         try:
             result = json.loads(line)

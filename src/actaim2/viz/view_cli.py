@@ -16,8 +16,8 @@ from pathlib import Path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("path", type=Path, help="a dataset folder, an evaluation run folder (--out of evaluate), "
-                                               "a bag (.mcap, .db3 or its folder) or a folder of bags")
+    parser.add_argument("path", type=Path, help="a dataset folder, an evaluation run folder (--out of evaluate) or its "
+                                               "record under results/, a bag (.mcap, .db3 or its folder) or a folder of bags")
     parser.add_argument("--limit", type=int, default=200, help="show at most this many trajectories, samples or episodes")
     parser.add_argument("--port", type=int, default=9090, help="port on 127.0.0.1 (0: any free one)")
     parser.add_argument("--no-browser", action="store_true", help="only serve; print the address")
