@@ -64,7 +64,12 @@ def main(args: argparse.Namespace) -> int:
         except ValueError as exc:
             print(f"actaim2 view: {exc}", file=sys.stderr)
             return 1
-        with ViewerServer(recording, args.path.name, args.port) as server:
+        try:
+            server = ViewerServer(recording, args.path.name, args.port)
+        except OSError as exc:
+            print(f"actaim2 view: cannot serve on 127.0.0.1:{args.port} ({exc}): try --port 0", file=sys.stderr)
+            return 1
+        with server:
             print(f"actaim2 view: {len(samples)} sample(s) of {args.path} at {server.url} (Ctrl-C stops)", flush=True)
             if not args.no_browser:
                 webbrowser.open(server.url)

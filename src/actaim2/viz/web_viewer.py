@@ -25,6 +25,7 @@ this machine, and whatever a later viewer version adds would too. The server lis
 """
 from __future__ import annotations
 
+import html
 import json
 import os
 import shutil
@@ -102,7 +103,7 @@ PAGE = """<!doctype html>
       enable_history: false,
       persist: false,
     });
-    window._handle = handle;
+    window._handle = handle;  // for scripts driving the page (the browser test waits for it)
     return handle.start(document.getElementById("viewer")).then(() => { status.remove(); });
   }).catch(fail);
 </script>
@@ -188,14 +189,16 @@ class ViewerServer:
     """Serves the viewer, our page and one recording on ``http://127.0.0.1:<port>/`` from a thread."""
 
     def __init__(self, recording: Path, title: str, port: int = 0, assets: dict[str, bytes] | None = None) -> None:
+        """OSError (the port is taken) before anything else is done."""
+        typed: dict[str, tuple[bytes, str]] = {}  # filled below, once the port is ours
+        self.httpd = ThreadingHTTPServer((LOOPBACK, port), partial(_Handler, files=typed))
         assets = assets if assets is not None else viewer_assets()
-        page = (PAGE.replace("__TITLE__", title).replace("__RECORDING__", RECORDING_PATH)
+        page = (PAGE.replace("__TITLE__", html.escape(title)).replace("__RECORDING__", RECORDING_PATH)
                 .replace("__MANIFEST__", MANIFEST_PATH))
         files = {"/": page.encode(), "/index.html": page.encode(), MANIFEST_PATH: b"[]",
                  RECORDING_PATH: Path(recording).read_bytes(), **{f"/{name}": data for name, data in assets.items()}}
-        typed = {path: (body, CONTENT_TYPES.get(Path(path).suffix or ".html", "application/octet-stream"))
-                 for path, body in files.items()}
-        self.httpd = ThreadingHTTPServer((LOOPBACK, port), partial(_Handler, files=typed))
+        typed.update({path: (body, CONTENT_TYPES.get(Path(path).suffix or ".html", "application/octet-stream"))
+                      for path, body in files.items()})
         self.thread = threading.Thread(target=self.httpd.serve_forever, daemon=True)
 
     @property
