@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # One idempotent setup step for the actaim2 workspace, shared by both README commands:
-#   1. Debian packages (build tools, libusb for Open3D, the Vulkan loader),
+#   1. Debian packages (build tools, libusb for Open3D, the Vulkan loader, chromium for the viewer test),
 #   2. Mesa lavapipe from the backports suite, unpacked under .deps/ (SAPIEN renders on CPU),
 #   3. a venv at .venv with requirements.txt (the venv is the ROS 2 Jazzy prefix) + src/actaim2,
 #   4. colcon build of the ROS packages into install/.
@@ -15,7 +15,7 @@ SUDO=""; [ "$(id -u)" -eq 0 ] || SUDO="sudo"
 APT_PACKAGES=(cmake g++ make git python3-venv libusb-1.0-0 libvulkan1 libgl1 libegl1 libxrender1
               libllvm15 libdrm2 libdrm-amdgpu1 libelf1 libwayland-client0 libx11-xcb1 libxcb-dri3-0
               libxcb-present0 libxcb-randr0 libxcb-shm0 libxcb-sync1 libxcb-xfixes0 libxshmfence1
-              libzstd1)
+              libzstd1 chromium)
 missing=()
 for p in "${APT_PACKAGES[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -70,7 +70,7 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   log "pip install -r requirements.txt -c constraints.txt (a fresh venv takes a few minutes)"
   "$VENV/bin/pip" install -q --disable-pip-version-check -r requirements.txt -c constraints.txt 2>&1 | grep -v "^WARNING: Location" || true
   "$VENV/bin/pip" install -q --disable-pip-version-check --no-deps --no-build-isolation -e src/actaim2 2>&1 | grep -v "^WARNING: Location" || true
-  "$VENV/bin/python" -c "import rclpy, sapien, open3d, pinocchio, ruckig, torch, rosbags, actaim2" \
+  "$VENV/bin/python" -c "import rclpy, sapien, open3d, pinocchio, ruckig, torch, rosbags, rerun, actaim2" \
     || { echo "[setup] venv is incomplete" >&2; exit 1; }
   echo "$want" > "$stamp"
 fi

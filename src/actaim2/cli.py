@@ -22,6 +22,7 @@ COMMANDS: dict[tuple[str, ...], tuple[str, str]] = {
     ("bench", "services"): ("actaim2.bench.services", "/sample_mode and /predict_keypose round trips, policy_node RSS, episode wall time"),
     ("expert",): ("actaim2.rollout.expert_eval", "scripted expert success per category (proves the objects are manipulable)"),
     ("render",): ("actaim2.perception.render_cli", "render a bag or saved cloud into orthographic PNG views"),
+    ("view",): ("actaim2.viz.view_cli", "a dataset, evaluation run or bags in the Rerun web viewer (offline, 127.0.0.1)"),
     ("collect",): ("actaim2.data.collect_cli", "self-supervised data collection in simulation"),
     ("prepare-objects",): ("actaim2.sim.objects.prepare_cli", "convex decomposition of real object folders into the hull cache"),
     ("stats",): ("actaim2.data.stats_cli", "statistics of a collected dataset"),
