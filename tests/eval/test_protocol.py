@@ -13,7 +13,7 @@ import yaml
 
 from actaim2.cli import main as cli
 from actaim2.eval.evalset import EVAL_SET_VERSION
-from actaim2.eval.protocol import (
+from actaim2.protocol.lock import (
     ProtocolLock,
     append_ledger,
     check_run,

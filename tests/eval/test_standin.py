@@ -19,7 +19,7 @@ from actaim2.eval.evalset import EVAL_SEED_BASE
 from actaim2.eval.standin import MODES, STATE_NAMES, mode_clusters, plan_episodes, summarise
 from actaim2.finetune.clusters import cluster_table
 from actaim2.sim.success import SUCCESS_FRACTION
-from actaim2.train import checkpoint
+from actaim2.artifact import checkpoint
 
 LABELS = ["push", "push", "pull", "pull"]
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 import torch
 
-from actaim2.train import checkpoint
-from actaim2.train.checkpoint import (CorruptCheckpointError, PerceptionMismatchError, WeightsMismatchError, load_policy,
+from actaim2.artifact import checkpoint
+from actaim2.artifact.checkpoint import (CorruptCheckpointError, PerceptionMismatchError, WeightsMismatchError, load_policy,
                                       perception_record)
 from actaim2.train.config import PhaseConfig
 from actaim2.train.distributed import init_distributed

@@ -13,7 +13,7 @@ import pytest
 import torch
 
 from actaim2.data.storage import object_of
-from actaim2.train.checkpoint import perception_record
+from actaim2.artifact.checkpoint import perception_record
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer
 from actaim2.train.served_eps import nearest_centre_pools, neighbour_eps_pools, pick_from_pools, served_eps_pools

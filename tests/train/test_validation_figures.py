@@ -11,7 +11,7 @@ import pytest
 import torch
 
 from actaim2.data.trajectory import PHASES
-from actaim2.train.checkpoint import perception_record
+from actaim2.artifact.checkpoint import perception_record
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer
 from actaim2.data.storage import trajectory_outcome

@@ -5,7 +5,7 @@ import json
 from pathlib import Path
 
 from actaim2.perception.config import PerceptionConfig
-from actaim2.train import checkpoint
+from actaim2.artifact import checkpoint
 
 
 def describe(stem: str | Path) -> dict:

@@ -23,7 +23,8 @@ from collections import defaultdict
 from dataclasses import dataclass
 from typing import Mapping, Sequence
 
-from actaim2.eval.stats import PairedCounts, Rate
+from actaim2.metrics.mode_ssr import GroupSample, halving_rule
+from actaim2.metrics.stats import PairedCounts, Rate, paired_bootstrap
 from actaim2.eval.tables import AVG
 from actaim2.keypose import PHASE_NAMES
 
@@ -144,3 +145,47 @@ def scene_pairs(runs: Sequence[Sequence[dict]], method_a: str,
             entry[3] += int(bool(rb["success"]))
     return [PairedCounts(category, scenes, sa, sb)
             for _, (category, scenes, sa, sb) in sorted(totals.items())]
+
+
+def comparison(runs: Sequence[Sequence[dict]], method: str, baseline: str, halvings: int,
+               rounds: int, seed: int = 0) -> list[str]:
+    """Markdown: ``method`` against ``baseline`` by the protocol's two rules, per split, over the
+    records of each seed's run (seeds pooled), with each seed's SSRs listed."""
+    splits = sorted({r["split"] for records in runs for r in records if r["method"] == method}
+                    & {r["split"] for records in runs for r in records if r["method"] == baseline})
+    if not splits:
+        raise ValueError(f"no split has records of both {method} and {baseline}")
+    lines = [f"# {method} against {baseline}: the protocol's rules, {len(runs)} seed(s) pooled",
+             ""]
+    for split in splits:
+        mine = [[r for r in records if r["split"] == split] for records in runs]
+        ssr = paired_bootstrap(scene_pairs(mine, method, baseline), rounds, seed)
+        samples: dict[str, dict[str, list[list[GroupSample]]]] = {method: {}, baseline: {}}
+        categories = {}
+        for records in mine:
+            per_run: dict[tuple[str, str], list[GroupSample]] = {}
+            for r in records:
+                if r["method"] in samples and r.get("group", -1) >= 0:
+                    mode = tuple(r["mode"]) if r["mode"] else None
+                    per_run.setdefault((r["method"], r["object"]), []).append(
+                        GroupSample(r["group"], r["repetition"], mode))
+                    categories[r["object"]] = r["category"]
+            for (name, obj), group_samples in per_run.items():
+                samples[name].setdefault(obj, []).append(group_samples)
+        second = halving_rule(samples[method], samples[baseline], categories, 2, halvings, rounds,
+                              seed)
+        lines += [f"## {split}", "",
+                  "| rule | pooled [95 %] | category macro-average [95 %] | holds |",
+                  "|---|---|---|---|",
+                  f"| SSR, paired scenes | {ssr.pooled.cell()} | {ssr.macro.cell()} | "
+                  f"{'yes' if ssr.above_zero else 'no'} |",
+                  f"| 2nd-mode SSR, {halvings} halvings (positive in "
+                  f"{100 * second.positive_share:.0f} %) | {second.difference.pooled.cell()} | "
+                  f"{second.difference.macro.cell()} | {'yes' if second.holds else 'no'} |", "",
+                  "| seed | " + f"{method} SSR % | {baseline} SSR % |", "|---|---|---|"]
+        for k, records in enumerate(mine):
+            rates = [Rate(sum(bool(r["success"]) for r in records if r["method"] == m),
+                          sum(r["method"] == m for r in records)) for m in (method, baseline)]
+            lines.append(f"| {k} | {rates[0].cell()} | {rates[1].cell()} |")
+        lines.append("")
+    return lines

@@ -29,7 +29,8 @@ from actaim2.eval.methods import PSEUDO_CLUSTERS
 from actaim2.eval.sim_views import ViewMaker, pictures
 from actaim2.eval.tasks import EvalTask
 from actaim2.keypose import Keypose
-from actaim2.policy.inference import NOISE_SCALE, ROLES, ModeSample, PolicyModel
+from actaim2.artifact.serving import DEFAULT_SERVING
+from actaim2.policy.inference import ROLES, ModeSample, PolicyModel
 from actaim2.policy.views import Views
 from actaim2.robots import RobotSpec
 from actaim2.sim.env import ResetInfo, SimEnv
@@ -98,7 +99,7 @@ class ServedPolicy:
     (``PolicyModel.sample_mode``'s)."""
 
     def __init__(self, model: PolicyModel, spec: RobotSpec, alternatives: int = 0, guidance: float = 0.0,
-                 noise_scale: float = NOISE_SCALE):
+                 noise_scale: float = DEFAULT_SERVING.noise_scale):
         self.model, self.alternatives, self.guidance, self.noise_scale = model, alternatives, guidance, noise_scale
         makers: dict[str, ViewMaker] = {}
         self.makers = {}

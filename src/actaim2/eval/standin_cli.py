@@ -63,7 +63,7 @@ def main(args: argparse.Namespace) -> int:
                                       summarise, summary_json, tables)
     from actaim2.eval.worker import WorkerSetup
     from actaim2.sim.randomisation import load_randomisation
-    from actaim2.train.checkpoint import paths
+    from actaim2.artifact.checkpoint import paths
 
     placements = 1 if args.quick else args.placements
     overrides = {"push": args.push_cluster, "pull": args.pull_cluster}

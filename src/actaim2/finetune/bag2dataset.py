@@ -68,7 +68,7 @@ def check_checkpoint_encoder(checkpoint_stem: str | Path, encoder_path: str | Pa
     """The checkpoint's selector learned task embeddings of one encoder E (``lineage.encoder_digest``,
     recorded by ``actaim2 train`` and ``actaim2 finetune``); demonstrations embedded by another E
     would ask it about a space it never saw. Raises naming both digests, or when none is recorded."""
-    from actaim2.train import checkpoint
+    from actaim2.artifact import checkpoint
 
     _, meta = checkpoint.read(checkpoint_stem)
     recorded = (meta.get("lineage") or {}).get("encoder_digest")

@@ -42,7 +42,7 @@ from actaim2.models.gumbel import gumbel_temperature
 from actaim2.models.view_geometry import CubePlacement
 from actaim2.perception.ortho_views import CHANNELS
 from actaim2.progress import progress
-from actaim2.train import checkpoint
+from actaim2.artifact import checkpoint
 from actaim2.train.action_loss import action_loss, action_targets, heatmap_log_likelihood
 from actaim2.train.balance import cluster_balanced_weights
 from actaim2.train.config import TrainConfig

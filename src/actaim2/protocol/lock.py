@@ -30,7 +30,6 @@ import shlex
 import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Sequence
 
 from actaim2.data.splits import TEST_SPLITS
 
@@ -282,51 +281,3 @@ def read_ledger(path: Path) -> list[dict]:
             except json.JSONDecodeError:
                 raise ValueError(f"{path}:{number}: not a JSON line") from None
     return runs
-
-
-def comparison(runs: Sequence[Sequence[dict]], method: str, baseline: str, halvings: int,
-               rounds: int, seed: int = 0) -> list[str]:
-    """Markdown: ``method`` against ``baseline`` by the protocol's two rules, per split, over the
-    records of each seed's run (seeds pooled), with each seed's SSRs listed."""
-    from actaim2.eval.mode_ssr import GroupSample, halving_rule
-    from actaim2.eval.paired import scene_pairs
-    from actaim2.eval.stats import Rate, paired_bootstrap
-
-    splits = sorted({r["split"] for records in runs for r in records if r["method"] == method}
-                    & {r["split"] for records in runs for r in records if r["method"] == baseline})
-    if not splits:
-        raise ValueError(f"no split has records of both {method} and {baseline}")
-    lines = [f"# {method} against {baseline}: the protocol's rules, {len(runs)} seed(s) pooled",
-             ""]
-    for split in splits:
-        mine = [[r for r in records if r["split"] == split] for records in runs]
-        ssr = paired_bootstrap(scene_pairs(mine, method, baseline), rounds, seed)
-        samples: dict[str, dict[str, list[list[GroupSample]]]] = {method: {}, baseline: {}}
-        categories = {}
-        for records in mine:
-            per_run: dict[tuple[str, str], list[GroupSample]] = {}
-            for r in records:
-                if r["method"] in samples and r.get("group", -1) >= 0:
-                    mode = tuple(r["mode"]) if r["mode"] else None
-                    per_run.setdefault((r["method"], r["object"]), []).append(
-                        GroupSample(r["group"], r["repetition"], mode))
-                    categories[r["object"]] = r["category"]
-            for (name, obj), group_samples in per_run.items():
-                samples[name].setdefault(obj, []).append(group_samples)
-        second = halving_rule(samples[method], samples[baseline], categories, 2, halvings, rounds,
-                              seed)
-        lines += [f"## {split}", "",
-                  "| rule | pooled [95 %] | category macro-average [95 %] | holds |",
-                  "|---|---|---|---|",
-                  f"| SSR, paired scenes | {ssr.pooled.cell()} | {ssr.macro.cell()} | "
-                  f"{'yes' if ssr.above_zero else 'no'} |",
-                  f"| 2nd-mode SSR, {halvings} halvings (positive in "
-                  f"{100 * second.positive_share:.0f} %) | {second.difference.pooled.cell()} | "
-                  f"{second.difference.macro.cell()} | {'yes' if second.holds else 'no'} |", "",
-                  "| seed | " + f"{method} SSR % | {baseline} SSR % |", "|---|---|---|"]
-        for k, records in enumerate(mine):
-            rates = [Rate(sum(bool(r["success"]) for r in records if r["method"] == m),
-                          sum(r["method"] == m for r in records)) for m in (method, baseline)]
-            lines.append(f"| {k} | {rates[0].cell()} | {rates[1].cell()} |")
-        lines.append("")
-    return lines

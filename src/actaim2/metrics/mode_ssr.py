@@ -41,7 +41,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from actaim2.eval.stats import (Estimate, Rate, RateDifference, bootstrap_weights,
+from actaim2.metrics.stats import (Estimate, Rate, RateDifference, bootstrap_weights,
                                 pooled_and_macro)
 
 Mode = tuple[str, int]  # (DoF, direction)
