@@ -65,3 +65,16 @@ def markdown(rows: list[dict]) -> str:
         lines.append(f"| {r['workload']} | {r['sim_s']:.1f} | {r['wall_s']:.2f} | {r['steps_per_s']:.0f} | {r['real_time_factor']:.1f}x |")
     return "\n".join(lines)
 
+
+def waving_arm(env, seconds: float):
+    """An ArmController following a slow sinusoid around home for ``seconds``."""
+    from actaim2.sim.joint_trajectory import ArmController, TrajectoryCommand
+
+    joints = tuple(env.spec.arm_joints)
+    times = np.arange(0.25, seconds + 0.25, 0.25)
+    amplitude = np.array([0.4, 0.2, 0.3, 0.3, 0.4, 0.3, 0.5])[: len(joints)]
+    positions = env.spec.home + np.sin(2 * np.pi * times[:, None] / 4.0) * amplitude
+    controller = ArmController(joints, env.robot.arm_positions(), goal_tolerance=0.0, goal_time_tolerance=0.0)
+    q, qd = env.robot.arm_positions(), np.zeros(len(joints))
+    controller.start(TrajectoryCommand(joints, times, positions, None, None, None), env.time, q, qd)
+    return controller

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .model import Shape, _rpy_matrix, convex_faces
+from .shapes import Shape, convex_faces, rpy_matrix
 
 
 def shape_mass_properties(shape: Shape, density: float) -> tuple[float, np.ndarray, np.ndarray]:
     """(mass, centre of mass, 3x3 inertia about the centre of mass), in the link frame."""
-    R = _rpy_matrix(shape.rpy)
+    R = rpy_matrix(shape.rpy)
     centre = np.asarray(shape.xyz, dtype=float)
     if shape.kind == "box":
         a, b, c = shape.size

@@ -21,7 +21,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .model import RGBA, Handle, Joint, Link, ObjectModel, Shape, Vec3
+from .model import Handle, Joint, Link, ObjectModel
+from .shapes import RGBA, Shape, Vec3
 from .physics_table import HANDLE_MATERIAL, part_material, sample_dynamics
 
 GAP = 0.002  # clearance between neighbouring panels (m)
