@@ -39,7 +39,7 @@ from actaim2.control.trajectory import JointPlanner, JointTrajectory, Limits, St
 from actaim2.gripper import gripper_geometry
 from actaim2.robots import RobotSpec
 
-from actaim2_control.action_client import LockedActionClient
+from actaim2_ros.action_client import LockedActionClient
 
 POLL = 0.01  # s between checks while waiting
 FEEDBACK_PERIOD = 0.1  # s between progress reports while the arm moves

@@ -33,8 +33,8 @@ from actaim2.control.teleop import (AskLabel, End, Gripper, Jog, JogSettings, La
 from actaim2.control.trajectory import JointTrajectory, Limits
 from actaim2.keypose import PHASE_NAMES
 from actaim2.robots import load_robot_spec
-from actaim2.ros_main import run_client
-from actaim2.ros_params import declare_parameters
+from actaim2_ros.main import run_client
+from actaim2_ros.params import declare_parameters
 
 from actaim2_control.ros_executor import ExecutionSettings, RosExecutor
 from actaim2_control.teleop_io import TeleopOutput

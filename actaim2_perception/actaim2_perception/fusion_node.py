@@ -45,10 +45,10 @@ from actaim2.perception.self_filter import RobotSelfFilter
 from actaim2.perception.static_tf import StaticTransformBuffer, UnknownFrameError
 from actaim2.perception.time_sync import ApproximateTimeSync
 from actaim2.robots import load_robot_spec
-from actaim2.ros_main import spin
-from actaim2.ros_params import declare_parameters
-from actaim2_perception.pointcloud2 import from_msg, to_msg
-from actaim2_perception.transforms import listen_tf_static
+from actaim2_ros.main import spin
+from actaim2_ros.params import declare_parameters
+from actaim2_ros.pointcloud2 import from_msg, to_msg
+from actaim2_ros.transforms import listen_tf_static
 
 VIEWS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
 

@@ -18,10 +18,10 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from rclpy.time import Time
 from sensor_msgs.msg import JointState, PointCloud2
 
-from actaim2.ros_main import spin
-from actaim2.ros_params import declare_parameters
-from actaim2_perception.pointcloud2 import to_msg
-from actaim2_perception.transforms import StaticTransformPublisher, matrix_to_transform
+from actaim2_ros.main import spin
+from actaim2_ros.params import declare_parameters
+from actaim2_ros.pointcloud2 import to_msg
+from actaim2_ros.transforms import StaticTransformPublisher, matrix_to_transform
 
 
 PARAMETERS = {
@@ -101,7 +101,7 @@ class LatencyProbe(Node):
             result["error"] = error
         print(json.dumps(result), flush=True)
         self.done = True
-        self.context.try_shutdown()  # ends actaim2.ros_main.spin
+        self.context.try_shutdown()  # ends actaim2_ros.main.spin
 
 
 def main(args: list[str] | None = None) -> int:

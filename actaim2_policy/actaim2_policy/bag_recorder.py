@@ -48,8 +48,8 @@ from actaim2.bags.recorder import Recorder, RecordSummary, unique_path
 from actaim2.bags.writer import (
     COMPRESSIONS, DEFAULT_CHUNK_SIZE, DEFAULT_MAX_CHUNK_AGE, STORAGES, BagWriter,
 )
-from actaim2.ros_main import spin_until
-from actaim2.ros_params import declare_parameters
+from actaim2_ros.main import spin_until
+from actaim2_ros.params import declare_parameters
 from actaim2_policy.ros_bags import bag_qos, install_prefixes, message_class, rclpy_qos
 
 PARAMETERS = {

@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
-from actaim2_control.action_client import LockedActionClient
+from actaim2_ros.action_client import LockedActionClient
 from actaim2_msgs.action import ExecuteKeypose
 from actaim2_msgs.msg import EpisodeEvent, Keypose
 from actaim2_msgs.srv import PredictKeypose, ResetScene, SampleMode
@@ -48,9 +48,9 @@ from actaim2.policy.episodes import (EpisodeLog, EpisodeRecord, EpisodeSpec, Pha
                                      summary_table)
 from actaim2.policy.requests import is_transient
 from actaim2.policy.retry import BACKOFF_CAP, Backoff, wait_until
-from actaim2.ros_keypose import keypose_data, keypose_msg
-from actaim2.ros_main import run_client
-from actaim2.ros_params import declare_parameters
+from actaim2_ros.keypose import keypose_data, keypose_msg
+from actaim2_ros.main import run_client
+from actaim2_ros.params import declare_parameters
 from actaim2_policy.grasp_baseline import GraspBaseline
 
 EPISODE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)

@@ -37,9 +37,9 @@ from actaim2.policy.inference import ROLES, PolicyLoadError, PolicyModel
 from actaim2.policy.locate import COMMITTED, installed_folders, resolve_checkpoint
 from actaim2.policy.requests import NO_VIEWS, RequestError, check_cluster, check_embedding, check_fresh, check_phase
 from actaim2.policy.views import Views, accept_views
-from actaim2.ros_keypose import keypose_msg
-from actaim2.ros_main import spin
-from actaim2.ros_params import declare_parameters
+from actaim2_ros.keypose import keypose_msg
+from actaim2_ros.main import spin
+from actaim2_ros.params import declare_parameters
 
 VIEWS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)  # as fusion_node publishes them
 # The mode in use is state: a recorder that starts later still learns it.

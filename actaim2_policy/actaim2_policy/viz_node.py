@@ -39,9 +39,9 @@ from tf2_msgs.msg import TFMessage
 from actaim2.keypose import PHASE_NAMES, Keypose
 from actaim2.perception.cloud_codec import CloudFormatError, Field, decode
 from actaim2.perception.ortho_views import VIEWS
-from actaim2.ros_keypose import keypose_data
-from actaim2.ros_main import spin
-from actaim2.ros_params import declare_parameters
+from actaim2_ros.keypose import keypose_data
+from actaim2_ros.main import spin
+from actaim2_ros.params import declare_parameters
 from actaim2.viz import foxglove_live as live
 
 HOST = "127.0.0.1"  # the server never listens beyond this machine

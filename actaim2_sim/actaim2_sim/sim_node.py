@@ -24,7 +24,7 @@ behind are skipped, never queued.
 
 Shutdown (Ctrl-C, SIGTERM): rclpy's own signal handler would shut the context down at once, so
 running goals could not be answered. Here the signal only sets a flag that the spin loop polls
-(:func:`actaim2.ros_main.spin_until`); then the loop stops, every running goal is aborted, goals
+(:func:`actaim2_ros.main.spin_until`); then the loop stops, every running goal is aborted, goals
 that arrive later are aborted at once (an execute callback left waiting would keep its executor
 thread, and with it the process, alive forever), and the executor spins a little longer so the
 clients get their results.
@@ -50,7 +50,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from actaim2.ros_main import SPIN_POLL, spin_until
+from actaim2_ros.main import SPIN_POLL, spin_until
 from actaim2.sim.env import SimEnv
 from actaim2.sim.gripper_action import GripperGoal, GripperOutcome
 from actaim2.sim.joint_trajectory import (
@@ -65,8 +65,8 @@ from actaim2.sim.objects.catalog import category_instances, list_categories
 from actaim2.sim.objects.loader import ObjectLoadError
 from actaim2.sim.objects.prepare import find_object_folders, prepare_objects
 from actaim2.sim.sensor_noise import SensorNoise
-from actaim2_perception.pointcloud2 import to_msg as cloud_to_msg
-from actaim2_perception.transforms import StaticTransformPublisher, matrix_to_transform
+from actaim2_ros.pointcloud2 import to_msg as cloud_to_msg
+from actaim2_ros.transforms import StaticTransformPublisher, matrix_to_transform
 
 from actaim2_sim.parameters import declare_parameters
 
@@ -427,7 +427,7 @@ class SimNode(Node):
         """Stop the loop, abort every running goal (and, from now on, every new one), and spin
         this node's executor until the loop has stopped, the aborted goals' execute callbacks have
         returned and their results have gone out to the clients: called by
-        :func:`actaim2.ros_main.spin_until` before it shuts the executor down (a tick still in
+        :func:`actaim2_ros.main.spin_until` before it shuts the executor down (a tick still in
         flight then would use the destroyed executor). Exit code 0."""
         executor = self.executor
         with self._lock:

@@ -15,7 +15,7 @@ from tf2_msgs.msg import TFMessage
 
 from actaim2.bags.metadata import TopicSpec
 from actaim2.bags.writer import BagWriter
-from actaim2_perception.transforms import TF_STATIC_LISTENER_QOS
+from actaim2_ros.transforms import TF_STATIC_LISTENER_QOS
 from harness import wait_for
 
 T0 = 1_700_000_000 * 10**9

@@ -20,7 +20,7 @@ from sensor_msgs.msg import JointState, PointCloud2
 from std_msgs.msg import Header
 from tf2_msgs.msg import TFMessage
 
-from actaim2_perception.transforms import TF_STATIC_QOS, matrix_to_transform
+from actaim2_ros.transforms import TF_STATIC_QOS, matrix_to_transform
 from harness import wait_for
 
 EPISODE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)

@@ -19,7 +19,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from sensor_msgs.msg import PointCloud2
 
-from actaim2.ros_main import spin
+from actaim2_ros.main import spin
 from actaim2_msgs.action import ExecuteKeypose
 from actaim2_msgs.msg import Keypose, OrthoViews
 from actaim2_msgs.srv import PredictKeypose, SampleMode

@@ -204,7 +204,7 @@ def test_point_cloud_round_trips_exactly_with_sensor_qos(ros_node, peer) -> None
 # --- (c) action ---------------------------------------------------------------------------
 
 def _action_client(node):
-    from actaim2_control.action_client import LockedActionClient
+    from actaim2_ros.action_client import LockedActionClient
     from actaim2_msgs.action import ExecuteKeypose
 
     client = LockedActionClient(node, ExecuteKeypose, "/execute_keypose")

@@ -25,8 +25,8 @@ from actaim2.perception.ortho_views import CHANNELS, VIEWS, cube_to_world, proje
 from actaim2.perception.synthetic import RaycastScene, box_mesh, robot_collision_meshes
 from actaim2.robots import load_robot_spec
 from actaim2.sim.cameras import look_at_optical
-from actaim2_perception.pointcloud2 import from_msg, to_msg
-from actaim2_perception.transforms import (
+from actaim2_ros.pointcloud2 import from_msg, to_msg
+from actaim2_ros.transforms import (
     TF_STATIC_LISTENER_QOS,
     StaticTransformPublisher,
     matrix_to_transform,

@@ -111,9 +111,9 @@ def test_a_foxglove_client_gets_every_channel_decoded(ros_node, graph):
     from sensor_msgs.msg import JointState, PointCloud2
     from tf2_msgs.msg import TFMessage
 
-    from actaim2_perception.pointcloud2 import to_msg
+    from actaim2_ros.pointcloud2 import to_msg
     from actaim2_policy.viz_node import KEYPOSE_QOS, LATCHED_QOS, VIEWS_QOS
-    from actaim2.ros_keypose import keypose_msg
+    from actaim2_ros.keypose import keypose_msg
     from actaim2.keypose import Keypose
 
     policy, viz = graph

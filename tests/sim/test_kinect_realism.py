@@ -15,7 +15,7 @@ from actaim2.sim.observe import CameraRig
 from actaim2.sim.render_raycast import entity_colour
 from actaim2.sim.render_sapien import SapienRenderer
 from actaim2.sim.sensor_noise import SensorNoise
-from actaim2_perception.pointcloud2 import from_msg
+from actaim2_ros.pointcloud2 import from_msg
 from harness import wait_for
 from test_cameras import BOX_CENTER, build_scene, needs_vulkan
 

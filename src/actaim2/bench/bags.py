@@ -32,7 +32,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from actaim2.bench.processes import cpu_seconds, private_ros_env, ros_run_command, start_logged, stop_group
+from actaim2.bench.processes import private_ros_env, ros_run_command, start_logged, stop_group
+from actaim2.profiling import cpu_seconds
 
 CLOUD_RATE, JOINT_RATE = 10.0, 100.0  # Hz at rate factor 1
 T0 = 1_700_000_000 * 10**9

@@ -239,7 +239,7 @@ def in_process(
             )
         except ValueError as exc:
             print(f"renderer before splatting not timed: {exc}")
-    # Payloads as rclpy delivers a PointCloud2's data: a (writable) array.array of bytes.
+    # Payloads as a ROS subscription delivers a PointCloud2's data: a (writable) array.array of bytes.
     payloads = [
         (replace(wire, data=array.array("B", wire.data)), c.T_world_optical)
         for wire, c in ((cloud_codec.encode(c.xyz, c.rgb), c) for c in scene.cameras)
