@@ -38,12 +38,11 @@ from actaim2.control.trajectory import Limits
 from actaim2.geometry import is_unit_quaternion
 from actaim2.perception.cloud_codec import CloudFormatError
 from actaim2.robots import load_robot_spec
+from actaim2_control.ros_executor import ExecutionSettings, RosExecutor
 from actaim2_ros.keypose import keypose_data
 from actaim2_ros.main import spin
 from actaim2_ros.params import declare_parameters
 from actaim2_ros.pointcloud2 import from_msg
-
-from actaim2_control.ros_executor import ExecutionSettings, RosExecutor
 
 KEYPOSE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 _WS = Workspace()

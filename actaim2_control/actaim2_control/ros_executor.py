@@ -38,7 +38,6 @@ from actaim2.control.executor import StepResult
 from actaim2.control.trajectory import JointPlanner, JointTrajectory, Limits, State, sample
 from actaim2.gripper import gripper_geometry
 from actaim2.robots import RobotSpec
-
 from actaim2_ros.action_client import LockedActionClient
 
 POLL = 0.01  # s between checks while waiting

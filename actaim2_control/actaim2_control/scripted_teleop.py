@@ -28,11 +28,10 @@ from sensor_msgs.msg import JointState
 from actaim2.keypose import PHASE_NAMES
 from actaim2.rollout.expert import PlanningError
 from actaim2.rollout.scripted_teleop import ScriptedTeleoperator, judged_success, task_for_label
+from actaim2.sim.env import SimEnv
+from actaim2_control.teleop_io import TeleopOutput
 from actaim2_ros.main import run_client
 from actaim2_ros.params import declare_parameters
-from actaim2.sim.env import SimEnv
-
-from actaim2_control.teleop_io import TeleopOutput
 
 INTERRUPTED = 130  # exit code after Ctrl-C, as a shell reports a SIGINT-ended command
 POLL = 0.05  # s (wall)

@@ -14,7 +14,6 @@ from actaim2_ros.main import spin
 from actaim2_ros.params import declare_parameters
 from actaim2_ros.transforms import StaticTransformPublisher, matrix_to_transform
 
-
 PARAMETERS = {"calibration_file": ("", "YAML: parent_frame + transforms (child frame -> 4x4)")}
 
 

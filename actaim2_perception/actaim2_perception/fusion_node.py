@@ -32,13 +32,13 @@ from actaim2.perception.calibration import load_calibration
 from actaim2.perception.cloud_codec import CloudFormatError
 from actaim2.perception.config import load_perception_config
 from actaim2.perception.fusion import CameraCloud
-from actaim2.perception.memory import keep_freed_memory
 from actaim2.perception.joint_history import (
     DEFAULT_HISTORY,
     DEFAULT_MAX_EXTRAPOLATION,
     JointStateHistory,
     JointStateUnavailable,
 )
+from actaim2.perception.memory import keep_freed_memory
 from actaim2.perception.ortho_views import VIEWS, rgb_mosaic
 from actaim2.perception.pipeline import EmptyObservationError, Perception
 from actaim2.perception.self_filter import RobotSelfFilter

@@ -23,7 +23,6 @@ from actaim2_ros.params import declare_parameters
 from actaim2_ros.pointcloud2 import to_msg
 from actaim2_ros.transforms import StaticTransformPublisher, matrix_to_transform
 
-
 PARAMETERS = {
     "scene_file": ("", "npz written by actaim2.bench.perception.save_scene"),
     "rate": (10.0, "Hz at which cloud sets are published"),

@@ -26,12 +26,12 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
-from actaim2.bags.playback import PlayOptions, Player, parse_remaps
+from actaim2.bags.playback import Player, PlayOptions, parse_remaps
 from actaim2.bags.qos import replay_choice
 from actaim2.bags.source import BagSource
+from actaim2_policy.ros_bags import message_class, rclpy_qos
 from actaim2_ros.main import spin_until
 from actaim2_ros.params import declare_parameters
-from actaim2_policy.ros_bags import message_class, rclpy_qos
 
 PARAMETERS = {
     # name: (default, description)

@@ -30,12 +30,19 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.service_introspection import ServiceIntrospectionState
 
+from actaim2.artifact.serving import DEFAULT_SERVING, ServingConfig
 from actaim2.perception.config import load_perception_config
 from actaim2.perception.ortho_views import VIEWS
-from actaim2.artifact.serving import DEFAULT_SERVING, ServingConfig
 from actaim2.policy.inference import ROLES, PolicyLoadError, PolicyModel
 from actaim2.policy.locate import COMMITTED, installed_folders, resolve_checkpoint
-from actaim2.policy.requests import NO_VIEWS, RequestError, check_cluster, check_embedding, check_fresh, check_phase
+from actaim2.policy.requests import (
+    NO_VIEWS,
+    RequestError,
+    check_cluster,
+    check_embedding,
+    check_fresh,
+    check_phase,
+)
 from actaim2.policy.views import Views, accept_views
 from actaim2_ros.keypose import keypose_msg
 from actaim2_ros.main import spin

@@ -8,10 +8,10 @@ from dataclasses import dataclass
 from rclpy.node import Node
 
 from actaim2.gripper import POSITION_UNITS
-from actaim2_ros import params
 from actaim2.sim.cameras import RIGS
 from actaim2.sim.render_path import RENDER_PATHS
 from actaim2.sim.sensor_noise import SENSOR_NOISE_PRESETS
+from actaim2_ros import params
 
 
 @dataclass(frozen=True)

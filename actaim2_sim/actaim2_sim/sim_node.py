@@ -50,7 +50,6 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from actaim2_ros.main import SPIN_POLL, spin_until
 from actaim2.sim.env import SimEnv
 from actaim2.sim.gripper_action import GripperGoal, GripperOutcome
 from actaim2.sim.joint_trajectory import (
@@ -65,9 +64,9 @@ from actaim2.sim.objects.catalog import category_instances, list_categories
 from actaim2.sim.objects.loader import ObjectLoadError
 from actaim2.sim.objects.prepare import find_object_folders, prepare_objects
 from actaim2.sim.sensor_noise import SensorNoise
+from actaim2_ros.main import SPIN_POLL, spin_until
 from actaim2_ros.pointcloud2 import to_msg as cloud_to_msg
 from actaim2_ros.transforms import StaticTransformPublisher, matrix_to_transform
-
 from actaim2_sim.parameters import declare_parameters
 
 MAX_CATCH_UP = 0.25  # wall seconds of lag made up per tick at most (no spiral of death when behind)

@@ -15,7 +15,6 @@ import pytest
 from actaim2.control.model import RobotModel
 from actaim2.geometry import matrix_to_pose, rotation_angle
 from actaim2.robots import load_robot_spec
-
 from harness import matched, wait_for
 
 SCENE = {"category": "table", "instance": 0, "seed": 0}
@@ -79,6 +78,7 @@ class Recorder:
 class KeyposeClient:
     def __init__(self, node) -> None:
         from actaim2_msgs.action import ExecuteKeypose
+
         from actaim2_ros.action_client import LockedActionClient
 
         self.Action = ExecuteKeypose

@@ -16,9 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from actaim2.eval.methods import PSEUDO_GROUPING
 from actaim2.artifact.serving import DEFAULT_SERVING
-
+from actaim2.eval.methods import PSEUDO_GROUPING
 from tiny_checkpoint import CLUSTERS, make_checkpoint, make_encoder
 
 SMOKE_OBJECTS = 3  # presets.PRESETS["smoke"]: storage_furniture 0 and 8, box 0

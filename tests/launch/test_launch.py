@@ -14,7 +14,14 @@ from tf2_msgs.msg import TFMessage
 
 from actaim2.launch import cli as launch_cli
 from actaim2.launch.cli import command_lines, default_graphs_file, share_dir, stop_all
-from actaim2.launch.graph import GraphError, NodeSpec, expand_share, load_graphs, parse_launch_xml, to_launch_xml
+from actaim2.launch.graph import (
+    GraphError,
+    NodeSpec,
+    expand_share,
+    load_graphs,
+    parse_launch_xml,
+    to_launch_xml,
+)
 from actaim2_ros.transforms import TF_STATIC_LISTENER_QOS
 from harness import REPO, wait_for
 

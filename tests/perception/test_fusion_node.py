@@ -20,7 +20,11 @@ from sensor_msgs.msg import Image, JointState, PointCloud2, PointField
 from tf2_msgs.msg import TFMessage
 
 from actaim2.geometry import T_ENTITY_OPTICAL, pose_to_matrix
-from actaim2.perception.config import PerceptionConfig, load_perception_config, save_perception_config
+from actaim2.perception.config import (
+    PerceptionConfig,
+    load_perception_config,
+    save_perception_config,
+)
 from actaim2.perception.ortho_views import CHANNELS, VIEWS, cube_to_world, project
 from actaim2.perception.synthetic import RaycastScene, box_mesh, robot_collision_meshes
 from actaim2.robots import load_robot_spec

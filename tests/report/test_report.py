@@ -13,8 +13,15 @@ import pytest
 
 from actaim2.cli import main
 from actaim2.eval.evaluate_cli import _header
-from actaim2.report.records import MAX_BYTES, RECORD_FILE, RESULTS_DIR, SAMPLES_FILE, \
-    load_record, parse_tables_header, record_from_evaluation
+from actaim2.report.records import (
+    MAX_BYTES,
+    RECORD_FILE,
+    RESULTS_DIR,
+    SAMPLES_FILE,
+    load_record,
+    parse_tables_header,
+    record_from_evaluation,
+)
 
 ROOT = Path(__file__).resolve().parents[2]
 SHA = "ab" * 32

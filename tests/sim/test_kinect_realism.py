@@ -169,7 +169,6 @@ def test_the_renderer_tells_glossy_metal_from_matte():
 def floor_and_box():
     scene, floor, box = build_scene(render=False)
     yield floor, box, lambda noise: CameraRig(scene, [KINECT], "raycast", noise=noise, seed=0).observe(0.0).frames[KINECT.name]
-    del scene
 
 
 def test_registration_shadow_behind_a_foreground_edge(floor_and_box):

@@ -51,7 +51,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def make_source_bag(path: Path, frames: int) -> dict[str, int]:
     """One second of ring5 clouds at 10 Hz + joint states at 100 Hz + /tf_static, uncompressed."""
-    from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+    from rosbags.interfaces import (
+        Qos,
+        QosDurability,
+        QosHistory,
+        QosLiveliness,
+        QosReliability,
+        QosTime,
+    )
     from rosbags.typesys import Stores, get_typestore
 
     from actaim2.bags.definitions import MessageDefinitions

@@ -106,7 +106,12 @@ def bench_predictor(
     from actaim2.data.encoder import AE_LATENT, AUTOENCODER_SPEC
     from actaim2.models.augment import augment
     from actaim2.models.mode_guidance import guide, with_reference
-    from actaim2.models.predictor import ActionPredictor, PredictorConfig, decode_action, proprio_features
+    from actaim2.models.predictor import (
+        ActionPredictor,
+        PredictorConfig,
+        decode_action,
+        proprio_features,
+    )
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.perception.fusion import FusionConfig
     from actaim2.train.action_loss import action_loss, action_targets

@@ -190,9 +190,8 @@ def in_process(
     one torch thread, CPU time approximates an idle machine. Second: where today's wall time
     goes, ms per set for each section the path marks (``actaim2.profiling``) and "rest".
     """
-    from actaim2.profiling import Profile, recording
-
     from actaim2.perception import cloud_codec, fusion, pipeline, self_filter
+    from actaim2.profiling import Profile, recording
     from actaim2.robots import load_robot_spec
 
     def path_of(codec, fusion_module, pipeline_module, filter_module, render=None):
@@ -351,7 +350,6 @@ def main(args: argparse.Namespace) -> int:
     import torch
 
     from actaim2.perception.config import load_perception_config
-
     from actaim2.perception.memory import keep_freed_memory
 
     torch.set_num_threads(args.threads)

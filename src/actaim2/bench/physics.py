@@ -17,8 +17,8 @@ import numpy as np
 
 def run_physics_bench(robot: str = "panda", seconds: float = 5.0, timestep: float = 1.0 / 240.0) -> list[dict]:
     """One dict per workload: name, simulated seconds, wall seconds, steps/s, real-time factor."""
-    from actaim2.sim.env import SimEnv
     from actaim2.rollout.expert import ExpertTask, ScriptedExpert
+    from actaim2.sim.env import SimEnv
 
     env = SimEnv(robot, timestep=timestep)
     env.reset("storage_furniture", 2, seed=2)

@@ -80,11 +80,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def untrained_checkpoint(stem: Path, perception) -> Path:
     """A checkpoint with the CPU default training sizes and random weights (timing only)."""
+    from actaim2.artifact import checkpoint
     from actaim2.models.predictor import ActionPredictor, PredictorConfig
     from actaim2.models.registry import build_selector
     from actaim2.models.selector_base import SelectorConfig
     from actaim2.perception.ortho_views import VIEWS
-    from actaim2.artifact import checkpoint
     from actaim2.train.config import load_config
 
     train = load_config("cpu_default")
@@ -295,8 +295,8 @@ def in_process(
 
     import torch
 
-    from actaim2.bench.baseline import modules_at
     from actaim2.artifact.serving import DEFAULT_SERVING
+    from actaim2.bench.baseline import modules_at
     from actaim2.policy.inference import PolicyModel
     from actaim2.policy.views import Views
 

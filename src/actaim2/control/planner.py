@@ -32,10 +32,17 @@ from actaim2.control.collision import CollisionChecker, points_away_from
 from actaim2.control.ik import IKSolver
 from actaim2.control.line import LineError, LineSegment, solve_line
 from actaim2.control.model import RobotModel
+from actaim2.control.trajectory import (
+    JointPlanner,
+    JointTrajectory,
+    Limits,
+    Segment,
+    State,
+    TrajectoryError,
+    sample,
+)
 from actaim2.keypose import GRASP, INIT, MANIPULATE, PHASE_NAMES, REACH
 from actaim2.profiling import timed
-from actaim2.control.trajectory import JointPlanner, JointTrajectory, Limits, Segment, State, TrajectoryError, sample
-
 
 
 @dataclass(frozen=True)

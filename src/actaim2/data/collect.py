@@ -47,23 +47,44 @@ from actaim2.control.executor import KeyposeRunner
 from actaim2.control.ik import IKOptions, IKSolver
 from actaim2.control.model import RobotModel
 from actaim2.control.planner import KeyposePlanner
-from actaim2.progress import progress
-from actaim2.rollout.sim_executor import SimEnvExecutor
 from actaim2.data.actions import ActionSequence, Sampler
 from actaim2.data.gmm_sampler import GMMAdaptiveSampler, GMMConfig
 from actaim2.data.grasp_sampler import HeuristicGraspSampler
-from actaim2.data.labelling import EMBEDDINGS_FILE, ENCODER_FILE, fit_default_encoder, label_dataset, measure_motions, visual_labels
+from actaim2.data.labelling import (
+    EMBEDDINGS_FILE,
+    ENCODER_FILE,
+    fit_default_encoder,
+    label_dataset,
+    measure_motions,
+    visual_labels,
+)
 from actaim2.data.object_cloud import CloudConfig, object_cloud
 from actaim2.data.random_sampler import RandomSampler, SamplingConfig
 from actaim2.data.real_objects import FolderObject
 from actaim2.data.splits import CALIBRATION_SPLITS, TRAINING_SPLITS, check_no_leak, split_of
 from actaim2.data.stats import RUNS_FILE
-from actaim2.data.storage import (SKIPPED_FILE, DatasetReader, DatasetWriter, EncodedTrajectory, encode_trajectory,
-                                  object_of, trajectory_id)
+from actaim2.data.storage import (
+    SKIPPED_FILE,
+    DatasetReader,
+    DatasetWriter,
+    EncodedTrajectory,
+    encode_trajectory,
+    object_of,
+    trajectory_id,
+)
 from actaim2.data.trajectory import CameraImage, ObjectState, Observation, Trajectory
 from actaim2.parallel import run_ordered
-from actaim2.perception.config import CAPTURE_FIELDS, RENDER_PATHS, PerceptionConfig, capture_part, check_compatible, load_perception_config
+from actaim2.perception.config import (
+    CAPTURE_FIELDS,
+    RENDER_PATHS,
+    PerceptionConfig,
+    capture_part,
+    check_compatible,
+    load_perception_config,
+)
+from actaim2.progress import progress
 from actaim2.robots import load_robot_spec
+from actaim2.rollout.sim_executor import SimEnvExecutor
 from actaim2.sim.contacts import ContactMonitor
 from actaim2.sim.env import SimEnv
 from actaim2.sim.objects.catalog import object_id

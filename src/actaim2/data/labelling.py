@@ -36,8 +36,16 @@ from actaim2.data.encoder_training import train_autoencoder
 from actaim2.data.part_motion import MotionConfig, PartMotion, part_motions
 from actaim2.data.splits import CALIBRATION_SPLITS
 from actaim2.data.storage import DatasetReader, write_labels
-from actaim2.data.success import (DEFAULT_MODEL, ReachConfig, SuccessModel, calibrate_threshold, change, label_metrics,
-                                   motion_features, part_reaches)
+from actaim2.data.success import (
+    DEFAULT_MODEL,
+    ReachConfig,
+    SuccessModel,
+    calibrate_threshold,
+    change,
+    label_metrics,
+    motion_features,
+    part_reaches,
+)
 
 ENCODER_FILE = "encoder.pt"
 EMBEDDINGS_FILE = "embeddings.npz"

@@ -29,9 +29,17 @@ from pathlib import Path
 
 import numpy as np
 
-from actaim2.data.splits import (PARTNET, PARTNET_EXTRA, PARTNET_TEST_CATEGORY,
-                                  PARTNET_TEST_INSTANCE, PARTNET_TRAIN, PARTNET_VAL, TRAIN,
-                                  UNSEEN_CATEGORY, UNSEEN_INSTANCE)
+from actaim2.data.splits import (
+    PARTNET,
+    PARTNET_EXTRA,
+    PARTNET_TEST_CATEGORY,
+    PARTNET_TEST_INSTANCE,
+    PARTNET_TRAIN,
+    PARTNET_VAL,
+    TRAIN,
+    UNSEEN_CATEGORY,
+    UNSEEN_INSTANCE,
+)
 
 EVAL_SET_VERSION = 1
 EVAL_SEED_BASE = 2**31  # collection's reset seeds are all below this

@@ -122,8 +122,8 @@ def _render_path(perception, args: argparse.Namespace) -> str:
 
 def _methods(args: argparse.Namespace) -> tuple[dict[str, Path], list[str]]:
     """(method -> checkpoint stem, the methods to run), with the reason for every row left out."""
-    from actaim2.eval.methods import METHODS
     from actaim2.artifact.checkpoint import paths
+    from actaim2.eval.methods import METHODS
 
     checkpoints = {"actaim2": args.checkpoint, "goal_rvt": args.goal_rvt, "vqvae_rvt": args.vqvae, "actaim_cvae": args.cvae,
                    "actaim2_depth": args.ablation_depth, "actaim2_single_view": args.ablation_single_view}
@@ -149,8 +149,8 @@ def _methods(args: argparse.Namespace) -> tuple[dict[str, Path], list[str]]:
 
 def _encoder(args: argparse.Namespace, goal_rvt: Path) -> Path | None:
     """Goal-RVT's encoder E: --encoder, else the one beside its checkpoint, else the dataset's."""
-    from actaim2.data.labelling import dataset_encoder
     from actaim2.artifact.checkpoint import encoder_path
+    from actaim2.data.labelling import dataset_encoder
 
     if args.encoder is not None:
         return args.encoder
@@ -160,23 +160,27 @@ def _encoder(args: argparse.Namespace, goal_rvt: Path) -> Path | None:
 
 
 def main(args: argparse.Namespace) -> int:
+    from actaim2.artifact.serving import DEFAULT_SERVING, check_noise_scale
     from actaim2.control.planner import POLICY_PLANNER
     from actaim2.data.real_objects import partnet_root
     from actaim2.data.splits import GENERATED, catalogue
     from actaim2.eval.checkpoints import describe, perception_of
     from actaim2.eval.data_collection import data_collection_samplers
-    from actaim2.eval.evalset import (EVAL_SET_VERSION, catalogue_objects, folder_objects,
-                                      partnet_objects)
+    from actaim2.eval.evalset import (
+        EVAL_SET_VERSION,
+        catalogue_objects,
+        folder_objects,
+        partnet_objects,
+    )
     from actaim2.eval.methods import ABLATIONS, PSEUDO_GROUPING, ablation_problem
-    from actaim2.protocol.lock import append_ledger, guarded_ids, protected, read_ledger
-    from actaim2.protocol.lock import check_run as check_protocol
     from actaim2.eval.results import ResultLog, RunMismatchError, check_run
     from actaim2.eval.tables import report
     from actaim2.eval.tasks import plan_tasks
     from actaim2.eval.worker import EvalWorker, WorkerSetup
     from actaim2.parallel import ray_available
     from actaim2.perception.config import load_perception_config
-    from actaim2.artifact.serving import DEFAULT_SERVING, check_noise_scale
+    from actaim2.protocol.lock import append_ledger, guarded_ids, protected, read_ledger
+    from actaim2.protocol.lock import check_run as check_protocol
 
     half_turn = POLICY_PLANNER.hand_half_turn if args.hand_half_turn is None else args.hand_half_turn
     alternatives = DEFAULT_SERVING.keypose_alternatives if args.keypose_alternatives is None else args.keypose_alternatives

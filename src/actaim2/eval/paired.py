@@ -23,10 +23,10 @@ from collections import defaultdict
 from dataclasses import dataclass
 from typing import Mapping, Sequence
 
-from actaim2.metrics.mode_ssr import GroupSample, halving_rule
-from actaim2.metrics.stats import PairedCounts, Rate, paired_bootstrap
 from actaim2.eval.tables import AVG
 from actaim2.keypose import PHASE_NAMES
+from actaim2.metrics.mode_ssr import GroupSample, halving_rule
+from actaim2.metrics.stats import PairedCounts, Rate, paired_bootstrap
 
 # A record's fields that must agree for two records of one key to be the same sample.
 SAME_SAMPLE = ("object", "split", "reset_seed", "sample_seed", "requested_cluster")

@@ -19,6 +19,7 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
+from actaim2.artifact.serving import DEFAULT_SERVING
 from actaim2.control.ik import IKSolver
 from actaim2.data.actions import Sampler
 from actaim2.data.collect import ik_reachable
@@ -29,7 +30,6 @@ from actaim2.eval.methods import PSEUDO_CLUSTERS
 from actaim2.eval.sim_views import ViewMaker, pictures
 from actaim2.eval.tasks import EvalTask
 from actaim2.keypose import Keypose
-from actaim2.artifact.serving import DEFAULT_SERVING
 from actaim2.policy.inference import ROLES, ModeSample, PolicyModel
 from actaim2.policy.views import Views
 from actaim2.robots import RobotSpec

@@ -29,9 +29,9 @@ from dataclasses import dataclass
 from typing import Sequence
 
 from actaim2.eval.evalset import EvalObject, reset_seed
-from actaim2.metrics.stats import Rate
 from actaim2.eval.tasks import EvalTask
 from actaim2.eval.worker import EvalWorker
+from actaim2.metrics.stats import Rate
 from actaim2.rollout.teleop_eval import MODES, STATE_NAMES, initial_state
 
 SPLIT = "standin"

@@ -55,15 +55,25 @@ def _conditions(args: argparse.Namespace) -> dict[str, Path]:
 
 
 def main(args: argparse.Namespace) -> int:
+    from actaim2.artifact.checkpoint import paths
     from actaim2.eval.checkpoints import describe, perception_of
     from actaim2.eval.evalset import EVAL_SET_VERSION
     from actaim2.eval.evaluate_cli import _render_path
     from actaim2.eval.results import ResultLog, RunMismatchError, check_run
-    from actaim2.eval.standin import (MODES, SHELF, STATE_NAMES, StandinWorker, mode_clusters, placement_seeds, plan_episodes,
-                                      summarise, summary_json, tables)
+    from actaim2.eval.standin import (
+        MODES,
+        SHELF,
+        STATE_NAMES,
+        StandinWorker,
+        mode_clusters,
+        placement_seeds,
+        plan_episodes,
+        summarise,
+        summary_json,
+        tables,
+    )
     from actaim2.eval.worker import WorkerSetup
     from actaim2.sim.randomisation import load_randomisation
-    from actaim2.artifact.checkpoint import paths
 
     placements = 1 if args.quick else args.placements
     overrides = {"push": args.push_cluster, "pull": args.pull_cluster}

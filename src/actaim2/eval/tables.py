@@ -18,11 +18,11 @@ from typing import Iterable, Sequence
 
 from actaim2.eval.evalset import SPLIT_TITLES, SPLITS, TABLE_SPLITS
 from actaim2.eval.methods import METHODS, NOT_REPRODUCED, PSEUDO_CLUSTERS
+from actaim2.eval.outcome import NO_SAMPLE
+from actaim2.keypose import PHASE_NAMES
 from actaim2.metrics.mode_dependence import PERMUTATIONS, dependence_cells
 from actaim2.metrics.mode_ssr import GroupSample, ModeResult, object_mode_ssr, pooled
-from actaim2.eval.outcome import NO_SAMPLE
 from actaim2.metrics.stats import Rate
-from actaim2.keypose import PHASE_NAMES
 from actaim2.sim.objects.catalog import HELDOUT_CATEGORIES
 
 PAPER_ORDER = ("faucet", "table", "storage_furniture", "door", "switch", "refrigerator") + HELDOUT_CATEGORIES

@@ -10,8 +10,8 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Sequence
 
-from actaim2.control.planner import POLICY_PLANNER
 from actaim2.artifact.serving import DEFAULT_SERVING
+from actaim2.control.planner import POLICY_PLANNER
 from actaim2.data.collect import PRECHECK_IK_RESTARTS, CollectConfig
 
 _COLLECT_DEFAULTS = {f.name: f.default for f in dataclasses.fields(CollectConfig)}

@@ -38,7 +38,13 @@ import numpy as np
 from actaim2.data.encoder import ImageEncoder
 from actaim2.data.labelling import EMBEDDINGS_FILE, encoder_digest
 from actaim2.data.splits import TRAIN
-from actaim2.data.storage import DatasetWriter, EncodedTrajectory, encode_trajectory, trajectory_id, write_labels
+from actaim2.data.storage import (
+    DatasetWriter,
+    EncodedTrajectory,
+    encode_trajectory,
+    trajectory_id,
+    write_labels,
+)
 from actaim2.data.trajectory import CameraImage, ObjectState, Observation, Trajectory
 from actaim2.finetune.bag_episodes import BagEpisode, BagProblem, Cloud, read_episodes
 from actaim2.finetune.intrinsics import IntrinsicsFit, IntrinsicsFitError, fit_intrinsics

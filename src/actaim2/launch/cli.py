@@ -21,8 +21,15 @@ import sys
 import time
 from pathlib import Path
 
-from actaim2.launch.graph import (GRAPH_ENVIRONMENT, Graph, GraphError, NodeSpec, load_graphs,
-                                  parse_arguments, to_launch_xml)
+from actaim2.launch.graph import (
+    GRAPH_ENVIRONMENT,
+    Graph,
+    GraphError,
+    NodeSpec,
+    load_graphs,
+    parse_arguments,
+    to_launch_xml,
+)
 from actaim2.runtime import STACK_DUMP_SIGNAL
 
 STOP_TIMEOUT = 10.0  # s a node gets to exit after SIGINT before it is killed

@@ -33,6 +33,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from actaim2.artifact import checkpoint
+from actaim2.artifact.device import choose_device
 from actaim2.artifact.serving import DEFAULT_SERVING, check_noise_scale
 from actaim2.keypose import Keypose
 from actaim2.models.mode_guidance import guide, with_reference
@@ -43,8 +45,6 @@ from actaim2.perception.config import PerceptionConfig
 from actaim2.policy.requests import RequestError, check_cluster, check_embedding, check_phase
 from actaim2.policy.views import Views
 from actaim2.profiling import timed
-from actaim2.artifact import checkpoint
-from actaim2.artifact.device import choose_device
 
 ROLES = ("selector", "predictor")
 # Fallback rotations are this far apart (up to the hand's half turn): closer ones meet the same obstacles.

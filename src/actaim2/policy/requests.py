@@ -12,7 +12,6 @@ import numpy as np
 
 from actaim2.keypose import PHASE_NAMES
 
-
 NO_VIEWS = "no views yet"
 STALE = "stale observation"
 

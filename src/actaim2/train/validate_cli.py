@@ -47,21 +47,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    from actaim2.artifact import checkpoint
+    from actaim2.artifact.device import choose_device
+    from actaim2.artifact.serving import DEFAULT_SERVING, check_noise_scale
     from actaim2.data.splits import catalogue
-    from actaim2.data.storage import DatasetReader, object_of
-    from actaim2.protocol.lock import append_ledger, guarded_ids, protected
-    from actaim2.protocol.lock import check_run as check_protocol
+    from actaim2.data.storage import DatasetReader, dataset_digest, object_of
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.perception.config import load_perception_config
-    from actaim2.artifact.serving import DEFAULT_SERVING, check_noise_scale
-    from actaim2.artifact import checkpoint
+    from actaim2.protocol.lock import append_ledger, guarded_ids, protected
+    from actaim2.protocol.lock import check_run as check_protocol
     from actaim2.train.curves import plot_curves, read_history
-    from actaim2.data.storage import dataset_digest
     from actaim2.train.data import ensure_cache, open_cache
-    from actaim2.artifact.device import choose_device
     from actaim2.train.distributed import set_cpu_threads
-    from actaim2.train.validation import action_figures, drawn_following, markdown, mode_chain_figures, outcome_figures, \
-        predict_keyframes, selector_figures, swapped_following
+    from actaim2.train.validation import (
+        action_figures,
+        drawn_following,
+        markdown,
+        mode_chain_figures,
+        outcome_figures,
+        predict_keyframes,
+        selector_figures,
+        swapped_following,
+    )
 
     if args.threads < 0:
         print(f"actaim2 validate: --threads {args.threads} is negative")

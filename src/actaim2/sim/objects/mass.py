@@ -42,9 +42,9 @@ def link_mass_properties(shapes: list[Shape], densities: list[float]) -> tuple[f
         raise ValueError("a link without volume has no mass")
     com = sum(p[0] * p[1] for p in parts) / mass
     inertia = np.zeros((3, 3))
-    for m, c, I in parts:
+    for m, c, part_inertia in parts:
         d = c - com
-        inertia += I + m * (d @ d * np.eye(3) - np.outer(d, d))  # parallel axis theorem
+        inertia += part_inertia + m * (d @ d * np.eye(3) - np.outer(d, d))  # parallel axis theorem
     return mass, com, inertia
 
 

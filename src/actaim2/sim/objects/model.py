@@ -207,10 +207,10 @@ def _fmt(values) -> str:
 def _inertial_xml(link: Link) -> str:
     """``<inertial>`` of a link from its shapes' volumes and materials."""
     densities = [MATERIALS[s.material or link.material].density for s in link.shapes]
-    mass, com, I = link_mass_properties(link.shapes, densities)
+    mass, com, inertia = link_mass_properties(link.shapes, densities)
     return (f'    <inertial><origin xyz="{_fmt(com)}" rpy="0 0 0"/><mass value="{mass:.6g}"/>'
-            f'<inertia ixx="{I[0, 0]:.6g}" ixy="{I[0, 1]:.6g}" ixz="{I[0, 2]:.6g}" iyy="{I[1, 1]:.6g}" '
-            f'iyz="{I[1, 2]:.6g}" izz="{I[2, 2]:.6g}"/></inertial>')
+            f'<inertia ixx="{inertia[0, 0]:.6g}" ixy="{inertia[0, 1]:.6g}" ixz="{inertia[0, 2]:.6g}" iyy="{inertia[1, 1]:.6g}" '
+            f'iyz="{inertia[1, 2]:.6g}" izz="{inertia[2, 2]:.6g}"/></inertial>')
 
 
 def _geometry_xml(s: Shape, mesh: str | None) -> str:
