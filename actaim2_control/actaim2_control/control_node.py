@@ -26,7 +26,6 @@ from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from rclpy.time import Time
 from sensor_msgs.msg import PointCloud2
 
 from actaim2.control.collision import CollisionChecker, Workspace
@@ -43,6 +42,7 @@ from actaim2_ros.keypose import keypose_data
 from actaim2_ros.main import spin
 from actaim2_ros.params import declare_parameters
 from actaim2_ros.pointcloud2 import from_msg
+from actaim2_ros.stamps import stamp_ns
 
 KEYPOSE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 _WS = Workspace()
@@ -160,7 +160,7 @@ class ControlNode(Node):
             self._have_cloud = True
         self._planner.set_cloud(points)
         with self._cloud_arrived:
-            self._cloud_stamp_ns = Time.from_msg(msg.header.stamp).nanoseconds
+            self._cloud_stamp_ns = stamp_ns(msg.header.stamp)
             self._cloud_arrived.notify_all()
 
     def _wait_for_cloud(self, k: KeyposeMsg) -> str:
@@ -173,7 +173,7 @@ class ControlNode(Node):
         faucet it had been reset to (every IK solution "collides")."""
         if not self._use_cloud or k.phase == KeyposeMsg.PHASE_MANIPULATE:  # the planner's cloud phases
             return ""
-        wanted = Time.from_msg(k.header.stamp).nanoseconds
+        wanted = stamp_ns(k.header.stamp)
         with self._cloud_arrived:
             if self._cloud_arrived.wait_for(lambda: self._cloud_stamp_ns >= wanted, self._cloud_wait):
                 return ""

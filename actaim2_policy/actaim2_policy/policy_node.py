@@ -47,6 +47,7 @@ from actaim2.policy.views import Views, accept_views
 from actaim2_ros.keypose import keypose_msg
 from actaim2_ros.main import spin
 from actaim2_ros.params import declare_parameters
+from actaim2_ros.stamps import stamp_msg, stamp_ns
 
 VIEWS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)  # as fusion_node publishes them
 # The mode in use is state: a recorder that starts later still learns it.
@@ -81,14 +82,6 @@ PARAMETERS = {
                                     "introspection; viz_node shows the mode probabilities and the "
                                     "predicted keypose from them)"),
 }
-
-
-def stamp_ns(stamp: Time) -> int:
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
-
-
-def stamp_msg(ns: int) -> Time:
-    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
 class PolicyNode(Node):

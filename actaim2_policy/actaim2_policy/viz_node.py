@@ -44,6 +44,7 @@ from actaim2.viz import foxglove_live as live
 from actaim2_ros.keypose import keypose_data
 from actaim2_ros.main import spin
 from actaim2_ros.params import declare_parameters
+from actaim2_ros.stamps import stamp_ns
 
 HOST = "127.0.0.1"  # the server never listens beyond this machine
 RETRY_PERIOD = 5.0  # s between two tries to serve on a port another process holds
@@ -70,10 +71,6 @@ PARAMETERS = {
     "poll_period": (0.5, "s: how often the large topics are subscribed or dropped as clients "
                          "subscribe to or leave their channels"),
 }
-
-
-def stamp_ns(stamp: Any) -> int:
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
 class VizNode(Node):

@@ -6,4 +6,5 @@
   pointcloud2    sensor_msgs/PointCloud2 <-> actaim2.perception.cloud_codec
   transforms     TF messages <-> 4x4 matrices, /tf_static publisher and listener
   action_client  an ActionClient safe to use from several threads
+  stamps         Time and Duration messages <-> nanoseconds and seconds, whole seconds carried
 """

@@ -39,7 +39,6 @@ from pathlib import Path
 
 import numpy as np
 from actaim2_msgs.srv import ResetScene
-from builtin_interfaces.msg import Time
 from control_msgs.action import FollowJointTrajectory, GripperCommand
 from rclpy.action import ActionServer, CancelResponse
 from rclpy.action.server import ServerGoalHandle
@@ -66,6 +65,7 @@ from actaim2.sim.objects.prepare import find_object_folders, prepare_objects
 from actaim2.sim.sensor_noise import SensorNoise
 from actaim2_ros.main import SPIN_POLL, spin_until
 from actaim2_ros.pointcloud2 import to_msg as cloud_to_msg
+from actaim2_ros.stamps import duration_seconds, seconds_stamp, stamp_seconds
 from actaim2_ros.transforms import StaticTransformPublisher, matrix_to_transform
 from actaim2_sim.parameters import declare_parameters
 
@@ -73,15 +73,6 @@ MAX_CATCH_UP = 0.25  # wall seconds of lag made up per tick at most (no spiral o
 FAST_TICK_BUDGET = 0.02  # wall seconds of stepping per tick with real_time_factor 0
 RELEASE_TIMEOUT = 1.0  # wall seconds at most for aborted goals' execute callbacks to return
 RESULT_FLUSH = 0.2  # wall seconds of spinning that hand the last results to their clients
-
-
-def sim_time_msg(t: float) -> Time:
-    sec = int(np.floor(t))
-    return Time(sec=sec, nanosec=int(round((t - sec) * 1e9)) % 1_000_000_000)
-
-
-def stamp_seconds(stamp: Time) -> float:
-    return stamp.sec + stamp.nanosec * 1e-9
 
 
 @dataclass
@@ -227,7 +218,7 @@ class SimNode(Node):
                 for _ in range(10):
                     self._physics_step()
         self._wall_last = wall_now
-        self.clock_pub.publish(Clock(clock=sim_time_msg(env.time)))
+        self.clock_pub.publish(Clock(clock=seconds_stamp(env.time)))
         if self.p.camera_rate > 0 and env.time >= self._next_camera_time:
             self._publish_clouds()
             self._next_camera_time = max(self._next_camera_time + 1.0 / self.p.camera_rate, env.time)
@@ -243,7 +234,7 @@ class SimNode(Node):
             self._monitor_goals()
 
     def _publish_states(self) -> None:
-        stamp = sim_time_msg(self.env.time)
+        stamp = seconds_stamp(self.env.time)
         names, q, qd = self.env.joint_state()
         msg = JointState(name=list(names), position=q.tolist(), velocity=qd.tolist())
         msg.header.stamp = stamp
@@ -256,7 +247,7 @@ class SimNode(Node):
 
     def _publish_clouds(self) -> None:
         obs = self.env.observe(with_robot=not self.get_parameter("hide_robot").value)
-        stamp = sim_time_msg(obs.sim_time)
+        stamp = seconds_stamp(obs.sim_time)
         for name, frame in obs.frames.items():
             cam = obs.cameras[name]
             self.cloud_pubs[name].publish(cloud_to_msg(frame.xyz, frame.rgb, cam.frame_id, stamp))
@@ -305,7 +296,7 @@ class SimNode(Node):
     def _trajectory_feedback(self, now: float, q: np.ndarray, qd: np.ndarray) -> FollowJointTrajectory.Feedback:
         desired_q, desired_qd = self.arm.command(now)
         feedback = FollowJointTrajectory.Feedback(joint_names=list(self.arm_joints))
-        feedback.header.stamp = sim_time_msg(now)
+        feedback.header.stamp = seconds_stamp(now)
         feedback.desired = JointTrajectoryPoint(positions=desired_q.tolist(), velocities=desired_qd.tolist())
         feedback.actual = JointTrajectoryPoint(positions=q.tolist(), velocities=qd.tolist())
         feedback.error = JointTrajectoryPoint(positions=(desired_q - q).tolist(), velocities=(desired_qd - qd).tolist())
@@ -317,7 +308,7 @@ class SimNode(Node):
         stamp = stamp_seconds(trajectory.header.stamp)
         command = command_from_points(
             list(trajectory.joint_names),
-            [(p.time_from_start.sec + p.time_from_start.nanosec * 1e-9, list(p.positions), list(p.velocities),
+            [(duration_seconds(p.time_from_start), list(p.positions), list(p.velocities),
               list(p.accelerations)) for p in trajectory.points],
             start_time=stamp if stamp > 0 else None,
         )
@@ -351,7 +342,7 @@ class SimNode(Node):
                                                            [t.position for t in request.goal_tolerance],
                                                            self.arm.default_goal_tolerance),
             }
-            goal_time = stamp_seconds(request.goal_time_tolerance)
+            goal_time = duration_seconds(request.goal_time_tolerance)
             if goal_time > 0:
                 tolerances["goal_time_tolerance"] = goal_time
             self._start_trajectory(request.trajectory, goal, tolerances)
@@ -483,7 +474,7 @@ class SimNode(Node):
             # Every observation published from now on is rendered from the new scene.
             self._next_camera_time = self.env.time
             self._sim_target = self.env.time  # the reset's settling ran ahead of the clock: continue from there
-            response.stamp = sim_time_msg(self.env.time)
+            response.stamp = seconds_stamp(self.env.time)
         self.get_logger().info(f"scene reset: {info.object_id} (seed {info.seed}, dof_fraction "
                                f"{np.round(fractions, 2).tolist() if request.dof_fractions else round(request.dof_fraction, 2)})")
         response.success = True

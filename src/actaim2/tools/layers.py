@@ -36,7 +36,7 @@ class Layer:
 # the other branch.
 LAYERS = (
     Layer("foundations", ("config_fields", "geometry", "keypose", "metrics", "parallel", "profiling", "progress",
-                          "robots", "runtime")),
+                          "robots", "runtime", "stamps")),
     Layer("presets", ("gripper", "launch")),
     Layer("world", ("bags", "control", "perception", "sim")),
     Layer("rollouts", ("rollout",)),
