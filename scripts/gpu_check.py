@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""One prepared GPU check of the learned policy (issue 11): run with plain `python` + torch.
+"""One prepared GPU check of the learned policy: run with plain `python` + torch.
 
     python scripts/gpu_check.py            # on a machine with CUDA (torch preinstalled, no network)
     python scripts/gpu_check.py --cpu      # the same code path on the CPU, small sizes (local test)

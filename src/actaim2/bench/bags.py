@@ -1,6 +1,6 @@
 """`actaim2 bench bags`: bag_recorder throughput, CPU and loss under a ring5 replay; bag_player timing.
 
-The load is the one of issue 14: five ring5 clouds (320x240, xyz + rgb, point_step 32, 2.46 MB
+The load is a ring5 rig's: five ring5 clouds (320x240, xyz + rgb, point_step 32, 2.46 MB
 each) at 10 Hz plus /joint_states at 100 Hz and a latched /tf_static, ~123 MB/s. It is made as a
 real replay: a one-second source bag of ray-cast ring5 frames (``actaim2.bench.perception``'s
 scene, each frame with its own per-point depth noise so compression sees sensor-like data) is

@@ -8,7 +8,7 @@ Measured on the default scene (Panda + storage_furniture instance 0, 240 Hz phys
     without the robot, and the PointCloud2 encoding of the five clouds;
   * real-time factor of the whole loop - trajectory execution plus ring5 rendered at 5 Hz of
     sim time - running as fast as possible.
-Targets (issue 3): physics >= 10x real time while executing trajectories; a ring5 observation
+Targets: physics >= 10x real time while executing trajectories; a ring5 observation
 <= 200 ms. Timings are medians; other jobs on the machine inflate them (load average printed).
 """
 from __future__ import annotations

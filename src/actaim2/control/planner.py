@@ -57,10 +57,9 @@ class PlannerOptions:
     hand_half_turn: bool = False  # plan T or T Rz(180), whichever is accepted (order: module docstring)
 
 
-# How a learned policy's keyposes are planned (the evaluation, control_node): with the half turn. On the
-# committed checkpoint it raised the SSR on seen objects (McNemar p 0.009) and unseen instances (p 3e-6),
-# docs/evaluation.md. The dataclass default stays off: data collection plans and labels exactly the pose
-# its sampler drew.
+# How a learned policy's keyposes are planned (the evaluation, control_node): with the half turn (a
+# two-finger grasp T and T Rz(180) are the same grasp; why it is on: docs/decisions.md). The
+# dataclass default stays off: data collection plans and labels exactly the pose its sampler drew.
 POLICY_PLANNER = PlannerOptions(hand_half_turn=True)
 
 

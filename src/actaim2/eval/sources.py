@@ -77,8 +77,7 @@ def pseudo_group(key: str, slot: int) -> tuple[int, int]:
     Each repetition (8 consecutive slots) gives every pseudo-cluster one slot, in an order drawn
     per object and repetition. Not ``slot mod 8``: Data Collection's GMM sampler visits its
     clusters round robin by slot, so with 2, 4 or 8 clusters ``slot mod 8`` would name the cluster
-    and the yardstick would not be a random partition (on seen objects the permutation test of
-    group against outcome gave p 0.026 with ``slot mod 8``, 0.46-0.96 with random partitions).
+    and the yardstick would not be a random partition (docs/decisions.md).
     """
     repetition, position = divmod(slot, PSEUDO_CLUSTERS)
     order = np.random.default_rng(pseudo_order_seed(key, repetition)).permutation(PSEUDO_CLUSTERS)

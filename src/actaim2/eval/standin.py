@@ -1,4 +1,4 @@
-"""The three-drawer stand-in of the paper's real-robot result (issue 15 item 4), in the simulator.
+"""The three-drawer stand-in of the paper's real-robot result, in the simulator.
 
 The demonstrations (``scripted_teleop`` through ``bag_recorder``, docs/finetuning.md) start from
 three initial states of the three-drawer shelf: the bottom, middle or top drawer half-open, the

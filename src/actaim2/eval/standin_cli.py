@@ -1,4 +1,4 @@
-"""`actaim2 eval-standin`: the three-drawer stand-in, before and after fine-tuning (issue 15 item 4).
+"""`actaim2 eval-standin`: the three-drawer stand-in, before and after fine-tuning.
 
     actaim2 eval-standin --before runs/azure/policy --after runs/azure_ft/policy --out runs/standin
     actaim2 eval-standin --before runs/azure/policy --after runs/azure_ft/policy --out runs/standin-quick --quick

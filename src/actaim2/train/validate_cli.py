@@ -1,4 +1,4 @@
-"""`actaim2 validate`: curves and validation figures of a training run (issue 11, item 6).
+"""`actaim2 validate`: curves and validation figures of a training run.
 
 Examples:
     actaim2 validate runs/cpu --data data/v2                       # runs/cpu/policy on train_unseen_instance
