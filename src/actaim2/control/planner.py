@@ -41,7 +41,7 @@ from actaim2.control.trajectory import (
     TrajectoryError,
     sample,
 )
-from actaim2.keypose import GRASP, INIT, MANIPULATE, PHASE_NAMES, REACH
+from actaim2.keypose import GRASP, INIT, MANIPULATE, PHASE_NAMES, REACH, check_phase
 from actaim2.profiling import timed
 
 
@@ -103,8 +103,10 @@ class KeyposePlanner:
     def plan(self, phase: int, T_goal: np.ndarray, gripper_closed: bool, start: State, velocity_scaling: float = 1.0,
              rng: np.random.Generator | None = None) -> Motion:
         """The motion executing keypose (phase, T_goal, gripper_closed) from the arm state ``start``."""
-        if phase not in (INIT, REACH, GRASP, MANIPULATE):
-            raise PlanningError("invalid", f"unknown phase {phase}: expected 0..3 (INIT, REACH, GRASP, MANIPULATE)")
+        try:
+            phase = check_phase(phase)
+        except ValueError as exc:
+            raise PlanningError("invalid", str(exc)) from None
         T_goal = np.asarray(T_goal, dtype=float)
         if phase == GRASP:
             return Motion(phase, T_goal, gripper_closed, None)
