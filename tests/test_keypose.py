@@ -30,6 +30,12 @@ def test_a_nearly_unit_quaternion_is_normalised():
     assert Keypose.from_json(keypose.to_json()).to_json() == keypose.to_json()
 
 
+def test_a_quaternion_unit_up_to_rounding_is_kept_as_given():
+    quat = np.array([0.6607570895249227, 0.4673198350725929, 0.26231677632709155, 0.525549378505617])
+    assert np.linalg.norm(quat) != 1.0
+    np.testing.assert_array_equal(Keypose(0, np.zeros(3), quat, False).quat_xyzw, quat)
+
+
 def test_the_phase_check_is_the_one_requests_and_the_planner_use():
     assert check_phase(3) == 3
     with pytest.raises(ValueError, match="unknown phase -1"):

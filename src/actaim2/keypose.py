@@ -12,6 +12,9 @@ import numpy as np
 INIT, REACH, GRASP, MANIPULATE = 0, 1, 2, 3  # Keypose.phase values, as Keypose.msg's PHASE_* constants
 PHASE_NAMES = ("INIT", "REACH", "GRASP", "MANIPULATE")
 UNIT_TOLERANCE = 1e-3  # how far from unit length a quaternion may be before it is refused, not normalised
+# Closer to unit length than this a quaternion is kept as given (a float32 or float64 rounding of a unit
+# one): the keyposes read from messages and bags stay the very numbers sent.
+UNIT_ROUNDING = 1e-6
 
 
 def check_phase(phase: int) -> int:
@@ -33,8 +36,8 @@ class Keypose:
 
     def __post_init__(self) -> None:
         """Checked once, where a keypose is made: a known phase, three finite coordinates and a
-        finite quaternion within :data:`UNIT_TOLERANCE` of unit length, which is then normalised.
-        A ValueError says what is wrong."""
+        finite quaternion within :data:`UNIT_TOLERANCE` of unit length, normalised when it is further
+        than :data:`UNIT_ROUNDING` from it. A ValueError says what is wrong."""
         self.phase = check_phase(self.phase)
         position, quat = np.asarray(self.position), np.asarray(self.quat_xyzw)
         if position.shape != (3,) or not np.all(np.isfinite(position)):
@@ -42,7 +45,7 @@ class Keypose:
         norm = float(np.linalg.norm(quat)) if quat.shape == (4,) else float("nan")
         if not abs(norm - 1.0) <= UNIT_TOLERANCE:
             raise ValueError(f"orientation {quat.tolist()} is not a unit quaternion (x, y, z, w)")
-        self.position, self.quat_xyzw = position, quat / norm
+        self.position, self.quat_xyzw = position, quat if abs(norm - 1.0) <= UNIT_ROUNDING else quat / norm
 
     def to_json(self) -> dict:
         return {
