@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""One prepared GPU check of the learned policy (issue 11): run with plain `python` + torch.
+"""One prepared GPU check of the learned policy: run with plain `python` + torch.
 
     python scripts/gpu_check.py            # on a machine with CUDA (torch preinstalled, no network)
     python scripts/gpu_check.py --cpu      # the same code path on the CPU, small sizes (local test)
@@ -73,11 +73,15 @@ import torch  # noqa: E402
 import torch.distributed as dist  # noqa: E402
 import torch.multiprocessing as mp  # noqa: E402
 
+from actaim2.models.mode_guidance import guide, with_reference  # noqa: E402
 from actaim2.models.obs_encoder import ObsEncoderConfig  # noqa: E402
-from actaim2.models.predictor import ActionPredictor, PredictorConfig, proprio_features  # noqa: E402
+from actaim2.models.predictor import (  # noqa: E402
+    ActionPredictor,
+    PredictorConfig,
+    proprio_features,
+)
 from actaim2.models.registry import build_selector  # noqa: E402
 from actaim2.models.selector_base import SelectorConfig  # noqa: E402
-from actaim2.models.mode_guidance import guide, with_reference  # noqa: E402
 from actaim2.models.view_geometry import decode_points, heatmap_targets  # noqa: E402
 from actaim2.train.action_loss import ActionTargets, action_loss  # noqa: E402
 from actaim2.train.config import ElboWeights  # noqa: E402

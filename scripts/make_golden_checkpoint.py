@@ -106,9 +106,9 @@ def training_data(config, rng: np.random.Generator):
 
 
 def main() -> None:
+    from actaim2.artifact.checkpoint import perception_record
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.perception.config import load_perception_config
-    from actaim2.train.checkpoint import perception_record
     from actaim2.train.distributed import init_distributed
     from actaim2.train.loop import POLICY, Trainer
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Records issue 15's stand-in demonstrations through the node graph, in one command:
+# Records the three-drawer stand-in's demonstrations through the node graph, in one command:
 #   bash scripts/record_standin_demos.sh [OUT]        (default runs/teleop; resumes nothing: OUT is replaced)
 # 60 episodes as the paper's real-world data: the three-drawer shelf at randomised placements, one
 # drawer half-open and the others shut; per initial state (bottom, middle, top half-open) 10 pushes

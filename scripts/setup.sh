@@ -80,7 +80,7 @@ fi
 mkdir -p log; exec 9>log/.setup.lock; flock 9
 # shellcheck source=/dev/null
 . "$ROOT/scripts/env.sh" --no-workspace
-PACKAGES=(actaim2_msgs actaim2_sim actaim2_perception actaim2_policy actaim2_control)
+PACKAGES=(actaim2_msgs actaim2_ros actaim2_sim actaim2_perception actaim2_policy actaim2_control)
 # The compat interfaces are built only where the environment lacks them (a real ROS keeps its own).
 have_underlay_package() {  # is $1 registered in an ament index outside this workspace?
   local prefix; IFS=: read -ra prefixes <<< "${AMENT_PREFIX_PATH:-}"

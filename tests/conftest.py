@@ -33,7 +33,7 @@ def ros_context() -> Iterator[None]:
 def ros_node(ros_context, request) -> Iterator["Node"]:
     from rclpy.node import Node
 
-    from actaim2.ros_main import BackgroundSpinner
+    from actaim2_ros.main import BackgroundSpinner
 
     node = Node(f"test_{request.node.name}".replace("[", "_").replace("]", "_").replace("-", "_")[:60])
     spinner = BackgroundSpinner(node)

@@ -4,8 +4,14 @@ from __future__ import annotations
 import os
 import xml.etree.ElementTree as ET
 
-from actaim2.runtime import (DEFAULT_DISCOVERY_RANGE, DISCOVERY_RANGE_VAR, FASTDDS_PROFILE, FASTDDS_PROFILE_VAR,
-                             FASTDDS_UDP_PROFILE, apply_ros_defaults)
+from actaim2.runtime import (
+    DEFAULT_DISCOVERY_RANGE,
+    DISCOVERY_RANGE_VAR,
+    FASTDDS_PROFILE,
+    FASTDDS_PROFILE_VAR,
+    FASTDDS_UDP_PROFILE,
+    apply_ros_defaults,
+)
 
 NS = {"p": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
 

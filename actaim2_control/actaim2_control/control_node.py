@@ -26,7 +26,6 @@ from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from rclpy.time import Time
 from sensor_msgs.msg import PointCloud2
 
 from actaim2.control.collision import CollisionChecker, Workspace
@@ -35,15 +34,15 @@ from actaim2.control.ik import IKOptions, IKSolver
 from actaim2.control.model import RobotModel
 from actaim2.control.planner import POLICY_PLANNER, KeyposePlanner, PlannerOptions
 from actaim2.control.trajectory import Limits
-from actaim2.geometry import is_unit_quaternion
+from actaim2.keypose import Keypose
 from actaim2.perception.cloud_codec import CloudFormatError
 from actaim2.robots import load_robot_spec
-from actaim2.ros_keypose import keypose_data
-from actaim2.ros_main import spin
-from actaim2.ros_params import declare_parameters
-from actaim2_perception.pointcloud2 import from_msg
-
 from actaim2_control.ros_executor import ExecutionSettings, RosExecutor
+from actaim2_ros.keypose import keypose_data
+from actaim2_ros.main import spin
+from actaim2_ros.params import declare_parameters
+from actaim2_ros.pointcloud2 import from_msg
+from actaim2_ros.stamps import stamp_ns
 
 KEYPOSE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 _WS = Workspace()
@@ -161,7 +160,7 @@ class ControlNode(Node):
             self._have_cloud = True
         self._planner.set_cloud(points)
         with self._cloud_arrived:
-            self._cloud_stamp_ns = Time.from_msg(msg.header.stamp).nanoseconds
+            self._cloud_stamp_ns = stamp_ns(msg.header.stamp)
             self._cloud_arrived.notify_all()
 
     def _wait_for_cloud(self, k: KeyposeMsg) -> str:
@@ -174,7 +173,7 @@ class ControlNode(Node):
         faucet it had been reset to (every IK solution "collides")."""
         if not self._use_cloud or k.phase == KeyposeMsg.PHASE_MANIPULATE:  # the planner's cloud phases
             return ""
-        wanted = Time.from_msg(k.header.stamp).nanoseconds
+        wanted = stamp_ns(k.header.stamp)
         with self._cloud_arrived:
             if self._cloud_arrived.wait_for(lambda: self._cloud_stamp_ns >= wanted, self._cloud_wait):
                 return ""
@@ -182,37 +181,28 @@ class ControlNode(Node):
         return (f"no obstacle cloud on {self._cloud_topic} stamped at or after the keypose ({wanted / 1e9:.3f} s) within "
                 f"{self._cloud_wait:g} s ({newest}): not planned around an older scene")
 
-    def _check_keypose(self, k: KeyposeMsg, name: str) -> str:
-        """What is wrong with one keypose of a goal ("" when nothing)."""
-        position = np.array([k.pose.position.x, k.pose.position.y, k.pose.position.z])
-        quat = np.array([k.pose.orientation.x, k.pose.orientation.y, k.pose.orientation.z, k.pose.orientation.w])
-        if k.header.frame_id not in self._frames:
-            return f"{name} frame '{k.header.frame_id}' is not one of {sorted(self._frames)}"
-        if not np.all(np.isfinite(position)):
-            return f"{name} position {position.tolist()} is not finite"
-        if not is_unit_quaternion(quat):
-            return f"{name} orientation {quat.tolist()} is not a unit quaternion (x, y, z, w)"
-        if k.phase > KeyposeMsg.PHASE_MANIPULATE:
-            return f"{name}: unknown phase {k.phase}: expected 0..3 (INIT, REACH, GRASP, MANIPULATE)"
-        return ""
-
-    def _check_goal(self, goal: ExecuteKeypose.Goal) -> str:
-        """What is wrong with a goal ("" when nothing). Alternatives are fallbacks for the same
-        step: the same phase as the keypose."""
-        problem = self._check_keypose(goal.keypose, "keypose")
-        for i, alt in enumerate(goal.alternatives):
-            problem = problem or self._check_keypose(alt, f"alternatives[{i}]")
-            if not problem and alt.phase != goal.keypose.phase:
-                problem = f"alternatives[{i}] is phase {alt.phase}, the keypose phase {goal.keypose.phase}: fallbacks are for the same step"
-        if problem:
-            return problem
+    def _keyposes(self, goal: ExecuteKeypose.Goal) -> tuple[list[Keypose], str]:
+        """The goal's keypose and its alternatives, each converted once, or the reason the goal is
+        refused ("" when none). Alternatives are fallbacks for the same step: the keypose's phase."""
+        keyposes: list[Keypose] = []
+        named = [("keypose", goal.keypose), *((f"alternatives[{i}]", alt) for i, alt in enumerate(goal.alternatives))]
+        for name, msg in named:
+            if msg.header.frame_id not in self._frames:
+                return [], f"{name} frame '{msg.header.frame_id}' is not one of {sorted(self._frames)}"
+            try:
+                keyposes.append(keypose_data(msg))
+            except ValueError as exc:
+                return [], f"{name} {exc}"
+            if msg.phase != goal.keypose.phase:
+                return [], (f"{name} is phase {msg.phase}, the keypose phase {goal.keypose.phase}: "
+                            "fallbacks are for the same step")
         if not (np.isfinite(goal.velocity_scaling) and 0.0 <= goal.velocity_scaling <= 1.0):
-            return f"velocity_scaling {goal.velocity_scaling} is not in (0, 1] (0 = the node's default)"
-        return ""
+            return [], f"velocity_scaling {goal.velocity_scaling} is not in (0, 1] (0 = the node's default)"
+        return keyposes, ""
 
     def _execute(self, handle: ServerGoalHandle) -> ExecuteKeypose.Result:
         goal = handle.request
-        problem = self._check_goal(goal)
+        candidates, problem = self._keyposes(goal)
         if problem:
             return self._finish(handle, Outcome(False, f"rejected: {problem}", float("nan"), float("nan"), "invalid"))
         if not self._busy.acquire(blocking=False):
@@ -220,7 +210,6 @@ class ControlNode(Node):
         try:
             k = goal.keypose
             self._keypose_pub.publish(k)
-            candidates = [keypose_data(m) for m in (k, *goal.alternatives)]
             scaling = float(goal.velocity_scaling) or self._default_scaling
             stale = self._wait_for_cloud(k)
             if stale:

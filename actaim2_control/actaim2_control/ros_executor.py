@@ -26,7 +26,6 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-from builtin_interfaces.msg import Duration
 from control_msgs.action import FollowJointTrajectory, GripperCommand
 from rclpy.callback_groups import CallbackGroup
 from rclpy.node import Node
@@ -38,8 +37,8 @@ from actaim2.control.executor import StepResult
 from actaim2.control.trajectory import JointPlanner, JointTrajectory, Limits, State, sample
 from actaim2.gripper import gripper_geometry
 from actaim2.robots import RobotSpec
-
-from actaim2_control.action_client import LockedActionClient
+from actaim2_ros.action_client import LockedActionClient
+from actaim2_ros.stamps import duration_msg, stamp_seconds
 
 POLL = 0.01  # s between checks while waiting
 FEEDBACK_PERIOD = 0.1  # s between progress reports while the arm moves
@@ -92,7 +91,7 @@ class RosExecutor:
             if len(msg.velocity) == len(msg.name):
                 self._velocities.update(zip(msg.name, msg.velocity))
             self._received = time.monotonic()
-            self._stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+            self._stamp = stamp_seconds(msg.header.stamp)
 
     def wait_for_joint_states(self, timeout: float) -> bool:
         return _wait(lambda: self._fresh_arm_state() is not None, timeout)
@@ -232,11 +231,10 @@ def _trajectory_msg(trajectory: JointTrajectory) -> JointTrajectoryMsg:
     """A JointTrajectory message; a zero header stamp means "start now"."""
     msg = JointTrajectoryMsg(joint_names=list(trajectory.joint_names))
     for t, q, v, a in zip(trajectory.times, trajectory.positions, trajectory.velocities, trajectory.accelerations):
-        sec = int(t)
         msg.points.append(
             JointTrajectoryPoint(
                 positions=q.tolist(), velocities=v.tolist(), accelerations=a.tolist(),
-                time_from_start=Duration(sec=sec, nanosec=int(round((t - sec) * 1e9)) % 1_000_000_000),
+                time_from_start=duration_msg(t),
             )
         )
     return msg

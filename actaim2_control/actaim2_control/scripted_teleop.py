@@ -28,11 +28,11 @@ from sensor_msgs.msg import JointState
 from actaim2.keypose import PHASE_NAMES
 from actaim2.rollout.expert import PlanningError
 from actaim2.rollout.scripted_teleop import ScriptedTeleoperator, judged_success, task_for_label
-from actaim2.ros_main import run_client
-from actaim2.ros_params import declare_parameters
 from actaim2.sim.env import SimEnv
-
 from actaim2_control.teleop_io import TeleopOutput
+from actaim2_ros.main import run_client
+from actaim2_ros.params import declare_parameters
+from actaim2_ros.stamps import stamp_ns
 
 INTERRUPTED = 130  # exit code after Ctrl-C, as a shell reports a SIGINT-ended command
 POLL = 0.05  # s (wall)
@@ -100,10 +100,10 @@ class ScriptedTeleop(Node):
             self.stop.wait(POLL)
         raise EpisodeFailure("interrupted (Ctrl-C)")
 
-    def _state_after(self, stamp_ns: int) -> JointState | None:
+    def _state_after(self, after_ns: int) -> JointState | None:
         with self._lock:
             msg = self._object_state
-        return msg if msg is not None and msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec >= stamp_ns else None
+        return msg if msg is not None and stamp_ns(msg.header.stamp) >= after_ns else None
 
     def run(self) -> tuple[int, int]:
         """Every episode; returns (successes, episodes run)."""

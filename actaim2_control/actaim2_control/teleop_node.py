@@ -28,17 +28,28 @@ from rclpy.node import Node
 from actaim2.control.collision import CollisionChecker, Workspace
 from actaim2.control.ik import IKOptions, IKSolver
 from actaim2.control.model import RobotModel
-from actaim2.control.teleop import (AskLabel, End, Gripper, Jog, JogSettings, Label, Mark, Message, Quit, Start,
-                                    TeleopSession, format_pose)
+from actaim2.control.teleop import (
+    AskLabel,
+    End,
+    Gripper,
+    Jog,
+    JogSettings,
+    Label,
+    Mark,
+    Message,
+    Quit,
+    Start,
+    TeleopSession,
+    format_pose,
+)
 from actaim2.control.trajectory import JointTrajectory, Limits
 from actaim2.keypose import PHASE_NAMES
 from actaim2.robots import load_robot_spec
-from actaim2.ros_main import run_client
-from actaim2.ros_params import declare_parameters
-
 from actaim2_control.ros_executor import ExecutionSettings, RosExecutor
 from actaim2_control.teleop_io import TeleopOutput
 from actaim2_control.terminal import KeyboardTerminal, NotATerminal
+from actaim2_ros.main import run_client
+from actaim2_ros.params import declare_parameters
 
 _WS, _JOG = Workspace(), JogSettings()
 KEY_POLL = 0.1  # s: the longest the key loop waits before it looks at its stop flag

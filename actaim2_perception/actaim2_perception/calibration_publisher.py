@@ -10,10 +10,9 @@ from __future__ import annotations
 from rclpy.node import Node
 
 from actaim2.perception.calibration import load_calibration
-from actaim2.ros_main import spin
-from actaim2.ros_params import declare_parameters
-from actaim2_perception.transforms import StaticTransformPublisher, matrix_to_transform
-
+from actaim2_ros.main import spin
+from actaim2_ros.params import declare_parameters
+from actaim2_ros.transforms import StaticTransformPublisher, matrix_to_transform
 
 PARAMETERS = {"calibration_file": ("", "YAML: parent_frame + transforms (child frame -> 4x4)")}
 

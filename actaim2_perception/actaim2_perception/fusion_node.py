@@ -25,30 +25,30 @@ import torch
 from actaim2_msgs.msg import OrthoViews
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from rclpy.time import Time
 from sensor_msgs.msg import Image, JointState, PointCloud2
 
 from actaim2.perception.calibration import load_calibration
 from actaim2.perception.cloud_codec import CloudFormatError
 from actaim2.perception.config import load_perception_config
 from actaim2.perception.fusion import CameraCloud
-from actaim2.perception.memory import keep_freed_memory
 from actaim2.perception.joint_history import (
     DEFAULT_HISTORY,
     DEFAULT_MAX_EXTRAPOLATION,
     JointStateHistory,
     JointStateUnavailable,
 )
+from actaim2.perception.memory import keep_freed_memory
 from actaim2.perception.ortho_views import VIEWS, rgb_mosaic
 from actaim2.perception.pipeline import EmptyObservationError, Perception
 from actaim2.perception.self_filter import RobotSelfFilter
 from actaim2.perception.static_tf import StaticTransformBuffer, UnknownFrameError
 from actaim2.perception.time_sync import ApproximateTimeSync
 from actaim2.robots import load_robot_spec
-from actaim2.ros_main import spin
-from actaim2.ros_params import declare_parameters
-from actaim2_perception.pointcloud2 import from_msg, to_msg
-from actaim2_perception.transforms import listen_tf_static
+from actaim2_ros.main import spin
+from actaim2_ros.params import declare_parameters
+from actaim2_ros.pointcloud2 import from_msg, to_msg
+from actaim2_ros.stamps import stamp_ns
+from actaim2_ros.transforms import listen_tf_static
 
 VIEWS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -163,7 +163,7 @@ class FusionNode(Node):
         if len(msg.position) != len(msg.name):
             self._report("joint_states", f"JointState with {len(msg.name)} names but {len(msg.position)} positions")
             return
-        stamp = Time.from_msg(msg.header.stamp).nanoseconds
+        stamp = stamp_ns(msg.header.stamp)
         if stamp == 0:
             self._report("joint_states:stamp", "JointState without a stamp: it cannot be matched to the clouds' stamps")
             return
@@ -172,7 +172,7 @@ class FusionNode(Node):
             self._joint_arrived.notify_all()
 
     def _on_cloud(self, index: int, msg: PointCloud2) -> None:
-        group = self._sync.add(index, Time.from_msg(msg.header.stamp).nanoseconds, msg)
+        group = self._sync.add(index, stamp_ns(msg.header.stamp), msg)
         if group is None:
             if self._sync.last_spread_ns is not None:
                 self._report(
@@ -232,7 +232,7 @@ class FusionNode(Node):
         except EmptyObservationError as exc:
             self._report("workspace", str(exc))
             return
-        stamp = max((m.header.stamp for m in msgs), key=lambda s: Time.from_msg(s).nanoseconds)
+        stamp = max((m.header.stamp for m in msgs), key=stamp_ns)
         # The unfiltered cloud goes out as soon as clouds arrive: it needs no joint state.
         if not self._remove_robot_fused and self._fused_pub.get_subscription_count():
             self._fused_pub.publish(to_msg(fused.xyz, fused.rgb, self._world, stamp))
@@ -252,7 +252,7 @@ class FusionNode(Node):
     def _pose_robot_at(self, msgs: list[PointCloud2]) -> bool:
         """Pose the self-filter's robot at each distinct cloud stamp of the set; False (reason
         logged) when the joint states there are unknown."""
-        stamps = sorted({Time.from_msg(m.header.stamp).nanoseconds for m in msgs})
+        stamps = sorted({stamp_ns(m.header.stamp) for m in msgs})
         deadline = time.monotonic() + self._joint_wait
         try:
             with self._joint_arrived:

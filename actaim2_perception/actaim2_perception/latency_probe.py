@@ -15,14 +15,13 @@ import numpy as np
 from actaim2_msgs.msg import OrthoViews
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-from rclpy.time import Time
 from sensor_msgs.msg import JointState, PointCloud2
 
-from actaim2.ros_main import spin
-from actaim2.ros_params import declare_parameters
-from actaim2_perception.pointcloud2 import to_msg
-from actaim2_perception.transforms import StaticTransformPublisher, matrix_to_transform
-
+from actaim2_ros.main import spin
+from actaim2_ros.params import declare_parameters
+from actaim2_ros.pointcloud2 import to_msg
+from actaim2_ros.stamps import stamp_ns
+from actaim2_ros.transforms import StaticTransformPublisher, matrix_to_transform
 
 PARAMETERS = {
     "scene_file": ("", "npz written by actaim2.bench.perception.save_scene"),
@@ -84,7 +83,7 @@ class LatencyProbe(Node):
 
     def _on_views(self, msg: OrthoViews) -> None:
         arrived = time.monotonic()
-        sent = self._sent.pop(Time.from_msg(msg.header.stamp).nanoseconds, None)
+        sent = self._sent.pop(stamp_ns(msg.header.stamp), None)
         if sent is None:
             return
         if self._measuring_since is None:  # the first answer ends the warm-up (discovery, first TF)
@@ -101,7 +100,7 @@ class LatencyProbe(Node):
             result["error"] = error
         print(json.dumps(result), flush=True)
         self.done = True
-        self.context.try_shutdown()  # ends actaim2.ros_main.spin
+        self.context.try_shutdown()  # ends actaim2_ros.main.spin
 
 
 def main(args: list[str] | None = None) -> int:

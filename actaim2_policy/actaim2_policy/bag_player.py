@@ -21,17 +21,17 @@ import threading
 import time
 from pathlib import Path
 
-from builtin_interfaces.msg import Time
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
-from actaim2.bags.playback import PlayOptions, Player, parse_remaps
+from actaim2.bags.playback import Player, PlayOptions, parse_remaps
 from actaim2.bags.qos import replay_choice
 from actaim2.bags.source import BagSource
-from actaim2.ros_main import spin_until
-from actaim2.ros_params import declare_parameters
 from actaim2_policy.ros_bags import message_class, rclpy_qos
+from actaim2_ros.main import spin_until
+from actaim2_ros.params import declare_parameters
+from actaim2_ros.stamps import stamp_msg
 
 PARAMETERS = {
     # name: (default, description)
@@ -86,7 +86,7 @@ class BagPlayer(Node):
         clock = None
         if options.clock_period_ns:
             clock_pub = self.create_publisher(Clock, "/clock", 10)
-            clock = lambda ns: clock_pub.publish(Clock(clock=Time(sec=ns // 10**9, nanosec=ns % 10**9)))  # noqa: E731
+            clock = lambda ns: clock_pub.publish(Clock(clock=stamp_msg(ns)))  # noqa: E731
             by_output[clock_pub.topic_name] = clock_pub
         awaited = [t for t in p["wait_for_subscribers"] if t]
         if missing := [t for t in awaited if t not in by_output]:

@@ -46,11 +46,15 @@ from actaim2.bags.metadata import TopicSpec
 from actaim2.bags.qos import record_choice
 from actaim2.bags.recorder import Recorder, RecordSummary, unique_path
 from actaim2.bags.writer import (
-    COMPRESSIONS, DEFAULT_CHUNK_SIZE, DEFAULT_MAX_CHUNK_AGE, STORAGES, BagWriter,
+    COMPRESSIONS,
+    DEFAULT_CHUNK_SIZE,
+    DEFAULT_MAX_CHUNK_AGE,
+    STORAGES,
+    BagWriter,
 )
-from actaim2.ros_main import spin_until
-from actaim2.ros_params import declare_parameters
 from actaim2_policy.ros_bags import bag_qos, install_prefixes, message_class, rclpy_qos
+from actaim2_ros.main import spin_until
+from actaim2_ros.params import declare_parameters
 
 PARAMETERS = {
     # name: (default, description)

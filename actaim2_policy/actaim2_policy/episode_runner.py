@@ -31,7 +31,6 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
-from actaim2_control.action_client import LockedActionClient
 from actaim2_msgs.action import ExecuteKeypose
 from actaim2_msgs.msg import EpisodeEvent, Keypose
 from actaim2_msgs.srv import PredictKeypose, ResetScene, SampleMode
@@ -43,15 +42,25 @@ from rclpy.task import Future
 from sensor_msgs.msg import JointState, PointCloud2
 
 from actaim2.keypose import PHASE_NAMES
-from actaim2.policy.episodes import (EpisodeLog, EpisodeRecord, EpisodeSpec, PhaseRecord,
-                                     catalogue_paths, is_success, largest_change, plan_episodes,
-                                     summary_table)
+from actaim2.policy.episodes import (
+    EpisodeLog,
+    EpisodeRecord,
+    EpisodeSpec,
+    PhaseRecord,
+    catalogue_paths,
+    is_success,
+    largest_change,
+    plan_episodes,
+    summary_table,
+)
 from actaim2.policy.requests import is_transient
 from actaim2.policy.retry import BACKOFF_CAP, Backoff, wait_until
-from actaim2.ros_keypose import keypose_data, keypose_msg
-from actaim2.ros_main import run_client
-from actaim2.ros_params import declare_parameters
 from actaim2_policy.grasp_baseline import GraspBaseline
+from actaim2_ros.action_client import LockedActionClient
+from actaim2_ros.keypose import keypose_data, keypose_msg
+from actaim2_ros.main import run_client
+from actaim2_ros.params import declare_parameters
+from actaim2_ros.stamps import stamp_msg, stamp_ns
 
 EPISODE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 EVENT_ACK_TIMEOUT = 2.0  # s (wall) for /episode subscribers to acknowledge the last events before exit
@@ -100,10 +109,6 @@ class EpisodeFailure(Exception):
 
 class Interrupted(Exception):
     """Ctrl-C or SIGTERM."""
-
-
-def stamp_ns(stamp) -> int:
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
 class EpisodeRunner(Node):
@@ -251,7 +256,7 @@ class EpisodeRunner(Node):
 
     def _predict(self, embedding, phase: int, gripper_closed: bool, not_before: int) -> PredictKeypose.Response:
         request = PredictKeypose.Request(embedding=embedding, phase=phase, gripper_closed=gripper_closed)
-        request.not_before.sec, request.not_before.nanosec = divmod(not_before, 1_000_000_000)
+        request.not_before = stamp_msg(not_before)
 
         def ask():
             response = self._call(self._predict_client, request, "/predict_keypose")

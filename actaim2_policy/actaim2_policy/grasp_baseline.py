@@ -11,7 +11,7 @@ from actaim2.data.object_cloud import CloudConfig, ObjectCloud, remove_support
 from actaim2.data.random_sampler import SamplingConfig
 from actaim2.keypose import Keypose
 from actaim2.robots import load_robot_spec
-from actaim2_perception.pointcloud2 import from_msg
+from actaim2_ros.pointcloud2 import from_msg
 
 
 class GraspBaseline:

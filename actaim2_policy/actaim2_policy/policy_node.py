@@ -30,16 +30,24 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.service_introspection import ServiceIntrospectionState
 
+from actaim2.artifact.serving import DEFAULT_SERVING, ServingConfig
 from actaim2.perception.config import load_perception_config
 from actaim2.perception.ortho_views import VIEWS
-from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, MODE_GUIDANCE, NOISE_SCALE, ROLES, PolicyLoadError, PolicyModel, \
-    check_noise_scale
+from actaim2.policy.inference import ROLES, PolicyLoadError, PolicyModel
 from actaim2.policy.locate import COMMITTED, installed_folders, resolve_checkpoint
-from actaim2.policy.requests import NO_VIEWS, RequestError, check_cluster, check_embedding, check_fresh, check_phase
+from actaim2.policy.requests import (
+    NO_VIEWS,
+    RequestError,
+    check_cluster,
+    check_embedding,
+    check_fresh,
+    check_phase,
+)
 from actaim2.policy.views import Views, accept_views
-from actaim2.ros_keypose import keypose_msg
-from actaim2.ros_main import spin
-from actaim2.ros_params import declare_parameters
+from actaim2_ros.keypose import keypose_msg
+from actaim2_ros.main import spin
+from actaim2_ros.params import declare_parameters
+from actaim2_ros.stamps import stamp_msg, stamp_ns
 
 VIEWS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)  # as fusion_node publishes them
 # The mode in use is state: a recorder that starts later still learns it.
@@ -59,13 +67,13 @@ PARAMETERS = {
     "torch_threads": (1, "CPU threads for inference; 1 next to the simulator and fusion on 2 cores (a second "
                          "spinning OpenMP thread made each call 10x slower under load)"),
     "views_topic": ("/ortho_views", "views for the mode selector, and for the predictor unless predictor_views_topic is set"),
-    "keypose_alternatives": (KEYPOSE_ALTERNATIVES, "fallbacks answered with each keypose: its point with the next likeliest "
+    "keypose_alternatives": (DEFAULT_SERVING.keypose_alternatives, "fallbacks answered with each keypose: its point with the next likeliest "
                                                    "rotations, 30 deg apart, which control_node plans in turn when it refuses "
                                                    "the keypose (0 = none)"),
-    "mode_guidance": (MODE_GUIDANCE, "weight w of the mode guidance of the predicted point: each view's heatmap log-probabilities "
+    "mode_guidance": (DEFAULT_SERVING.mode_guidance, "weight w of the mode guidance of the predicted point: each view's heatmap log-probabilities "
                                      "l(eps) + w (l(eps) - l(0)), l(0) the predictor fed the mean mode (classifier-free "
                                      "guidance); 0 = the plain predictor, one forward pass"),
-    "noise_scale": (NOISE_SCALE, "spread of /sample_mode's latent draw relative to the trained selector's (sampling "
+    "noise_scale": (DEFAULT_SERVING.noise_scale, "spread of /sample_mode's latent draw relative to the trained selector's (sampling "
                                  "temperature): 1 = as trained, 0 = each cluster's noise-free eps (one eps per cluster and views)"),
     "predictor_views_topic": ("", "views for the action predictor when it was trained with the other robot-filter "
                                   "setting than the selector (fusion_node's alternate_views_topic); empty = views_topic"),
@@ -76,26 +84,12 @@ PARAMETERS = {
 }
 
 
-def stamp_ns(stamp: Time) -> int:
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
-
-
-def stamp_msg(ns: int) -> Time:
-    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
-
-
 class PolicyNode(Node):
     def __init__(self) -> None:
         super().__init__("policy_node")
         p = declare_parameters(self, PARAMETERS)
         torch.set_num_threads(int(p["torch_threads"]))
-        self._alternatives = int(p["keypose_alternatives"])
-        if self._alternatives < 0:
-            raise ValueError(f"keypose_alternatives {self._alternatives} is negative")
-        self._guidance = float(p["mode_guidance"])
-        if not self._guidance >= 0.0:
-            raise ValueError(f"mode_guidance {self._guidance} is not a weight >= 0")
-        self._noise_scale = check_noise_scale(float(p["noise_scale"]))
+        self._serving = ServingConfig(int(p["keypose_alternatives"]), float(p["mode_guidance"]), float(p["noise_scale"]))
         self._model: PolicyModel | None = None
         self._description = ""  # the model's describe(), answered with every mode: computed once
         self._load_error = ""
@@ -177,7 +171,7 @@ class PolicyNode(Node):
             model = self._require_model()
             check_cluster(request.cluster, model.clusters)
             views = self._views_for("selector")
-            sample = model.sample_mode(views, request.cluster, request.seed, self._noise_scale)
+            sample = model.sample_mode(views, request.cluster, request.seed, self._serving.noise_scale)
         except RequestError as exc:
             return self._refuse(response, str(exc))
         except Exception as exc:  # noqa: BLE001 - answered and logged: the node must keep serving
@@ -199,8 +193,8 @@ class PolicyNode(Node):
             check_phase(request.phase)
             views = self._views_for("predictor")
             check_fresh(views.stamp_ns, stamp_ns(request.not_before))
-            prediction = model.predict_keypose(views, eps, request.phase, request.gripper_closed, self._alternatives,
-                                               guidance=self._guidance)
+            prediction = model.predict_keypose(views, eps, request.phase, request.gripper_closed, self._serving.keypose_alternatives,
+                                               guidance=self._serving.mode_guidance)
         except RequestError as exc:
             return self._refuse(response, str(exc))
         except Exception as exc:  # noqa: BLE001 - answered and logged: the node must keep serving

@@ -17,11 +17,11 @@ from actaim2_msgs.msg import OrthoViews
 from actaim2_msgs.srv import PredictKeypose, SampleMode
 from rclpy.node import Node
 
-from actaim2.bench.processes import cpu_seconds
 from actaim2.keypose import PHASE_NAMES
-from actaim2.ros_main import run_client
-from actaim2.ros_params import declare_parameters
+from actaim2.profiling import cpu_seconds
 from actaim2_policy.policy_node import VIEWS_QOS
+from actaim2_ros.main import run_client
+from actaim2_ros.params import declare_parameters
 
 PARAMETERS = {
     "views_file": ("", "npz: data (V, C, H, W) float32, views, channels, digest (actaim2.bench.services.save_views)"),

@@ -22,7 +22,8 @@ from typing import Any, Callable
 
 import foxglove
 import numpy as np
-from actaim2_msgs.msg import EpisodeEvent, Keypose as KeyposeMsg, OrthoViews
+from actaim2_msgs.msg import EpisodeEvent, OrthoViews
+from actaim2_msgs.msg import Keypose as KeyposeMsg
 from actaim2_msgs.srv import PredictKeypose, SampleMode
 from foxglove.channels import (
     FrameTransformsChannel,
@@ -39,10 +40,11 @@ from tf2_msgs.msg import TFMessage
 from actaim2.keypose import PHASE_NAMES, Keypose
 from actaim2.perception.cloud_codec import CloudFormatError, Field, decode
 from actaim2.perception.ortho_views import VIEWS
-from actaim2.ros_keypose import keypose_data
-from actaim2.ros_main import spin
-from actaim2.ros_params import declare_parameters
 from actaim2.viz import foxglove_live as live
+from actaim2_ros.keypose import keypose_data
+from actaim2_ros.main import spin
+from actaim2_ros.params import declare_parameters
+from actaim2_ros.stamps import stamp_ns
 
 HOST = "127.0.0.1"  # the server never listens beyond this machine
 RETRY_PERIOD = 5.0  # s between two tries to serve on a port another process holds
@@ -69,10 +71,6 @@ PARAMETERS = {
     "poll_period": (0.5, "s: how often the large topics are subscribed or dropped as clients "
                          "subscribe to or leave their channels"),
 }
-
-
-def stamp_ns(stamp: Any) -> int:
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
 class VizNode(Node):

@@ -8,10 +8,10 @@ from dataclasses import dataclass
 from rclpy.node import Node
 
 from actaim2.gripper import POSITION_UNITS
-from actaim2 import ros_params
 from actaim2.sim.cameras import RIGS
 from actaim2.sim.render_path import RENDER_PATHS
 from actaim2.sim.sensor_noise import SENSOR_NOISE_PRESETS
+from actaim2_ros import params
 
 
 @dataclass(frozen=True)
@@ -91,8 +91,8 @@ DYNAMIC: dict[str, tuple[object, str]] = {
 
 def declare_parameters(node: Node) -> SimParameters:
     """Declare every parameter and return the read-only ones, validated."""
-    p = SimParameters(**ros_params.declare_parameters(node, DEFAULTS, read_only=True))
-    ros_params.declare_parameters(node, DYNAMIC)
+    p = SimParameters(**params.declare_parameters(node, DEFAULTS, read_only=True))
+    params.declare_parameters(node, DYNAMIC)
     choices = {"rig": RIGS, "render_path": RENDER_PATHS, "sensor_noise": SENSOR_NOISE_PRESETS,
                "gripper_position_unit": POSITION_UNITS}
     for name, allowed in choices.items():

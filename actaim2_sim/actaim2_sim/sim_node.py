@@ -24,7 +24,7 @@ behind are skipped, never queued.
 
 Shutdown (Ctrl-C, SIGTERM): rclpy's own signal handler would shut the context down at once, so
 running goals could not be answered. Here the signal only sets a flag that the spin loop polls
-(:func:`actaim2.ros_main.spin_until`); then the loop stops, every running goal is aborted, goals
+(:func:`actaim2_ros.main.spin_until`); then the loop stops, every running goal is aborted, goals
 that arrive later are aborted at once (an execute callback left waiting would keep its executor
 thread, and with it the process, alive forever), and the executor spins a little longer so the
 clients get their results.
@@ -39,7 +39,6 @@ from pathlib import Path
 
 import numpy as np
 from actaim2_msgs.srv import ResetScene
-from builtin_interfaces.msg import Time
 from control_msgs.action import FollowJointTrajectory, GripperCommand
 from rclpy.action import ActionServer, CancelResponse
 from rclpy.action.server import ServerGoalHandle
@@ -50,7 +49,6 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, PointCloud2
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from actaim2.ros_main import SPIN_POLL, spin_until
 from actaim2.sim.env import SimEnv
 from actaim2.sim.gripper_action import GripperGoal, GripperOutcome
 from actaim2.sim.joint_trajectory import (
@@ -65,24 +63,16 @@ from actaim2.sim.objects.catalog import category_instances, list_categories
 from actaim2.sim.objects.loader import ObjectLoadError
 from actaim2.sim.objects.prepare import find_object_folders, prepare_objects
 from actaim2.sim.sensor_noise import SensorNoise
-from actaim2_perception.pointcloud2 import to_msg as cloud_to_msg
-from actaim2_perception.transforms import StaticTransformPublisher, matrix_to_transform
-
+from actaim2_ros.main import SPIN_POLL, spin_until
+from actaim2_ros.pointcloud2 import to_msg as cloud_to_msg
+from actaim2_ros.stamps import duration_seconds, seconds_stamp, stamp_seconds
+from actaim2_ros.transforms import StaticTransformPublisher, matrix_to_transform
 from actaim2_sim.parameters import declare_parameters
 
 MAX_CATCH_UP = 0.25  # wall seconds of lag made up per tick at most (no spiral of death when behind)
 FAST_TICK_BUDGET = 0.02  # wall seconds of stepping per tick with real_time_factor 0
 RELEASE_TIMEOUT = 1.0  # wall seconds at most for aborted goals' execute callbacks to return
 RESULT_FLUSH = 0.2  # wall seconds of spinning that hand the last results to their clients
-
-
-def sim_time_msg(t: float) -> Time:
-    sec = int(np.floor(t))
-    return Time(sec=sec, nanosec=int(round((t - sec) * 1e9)) % 1_000_000_000)
-
-
-def stamp_seconds(stamp: Time) -> float:
-    return stamp.sec + stamp.nanosec * 1e-9
 
 
 @dataclass
@@ -228,7 +218,7 @@ class SimNode(Node):
                 for _ in range(10):
                     self._physics_step()
         self._wall_last = wall_now
-        self.clock_pub.publish(Clock(clock=sim_time_msg(env.time)))
+        self.clock_pub.publish(Clock(clock=seconds_stamp(env.time)))
         if self.p.camera_rate > 0 and env.time >= self._next_camera_time:
             self._publish_clouds()
             self._next_camera_time = max(self._next_camera_time + 1.0 / self.p.camera_rate, env.time)
@@ -244,7 +234,7 @@ class SimNode(Node):
             self._monitor_goals()
 
     def _publish_states(self) -> None:
-        stamp = sim_time_msg(self.env.time)
+        stamp = seconds_stamp(self.env.time)
         names, q, qd = self.env.joint_state()
         msg = JointState(name=list(names), position=q.tolist(), velocity=qd.tolist())
         msg.header.stamp = stamp
@@ -257,7 +247,7 @@ class SimNode(Node):
 
     def _publish_clouds(self) -> None:
         obs = self.env.observe(with_robot=not self.get_parameter("hide_robot").value)
-        stamp = sim_time_msg(obs.sim_time)
+        stamp = seconds_stamp(obs.sim_time)
         for name, frame in obs.frames.items():
             cam = obs.cameras[name]
             self.cloud_pubs[name].publish(cloud_to_msg(frame.xyz, frame.rgb, cam.frame_id, stamp))
@@ -306,7 +296,7 @@ class SimNode(Node):
     def _trajectory_feedback(self, now: float, q: np.ndarray, qd: np.ndarray) -> FollowJointTrajectory.Feedback:
         desired_q, desired_qd = self.arm.command(now)
         feedback = FollowJointTrajectory.Feedback(joint_names=list(self.arm_joints))
-        feedback.header.stamp = sim_time_msg(now)
+        feedback.header.stamp = seconds_stamp(now)
         feedback.desired = JointTrajectoryPoint(positions=desired_q.tolist(), velocities=desired_qd.tolist())
         feedback.actual = JointTrajectoryPoint(positions=q.tolist(), velocities=qd.tolist())
         feedback.error = JointTrajectoryPoint(positions=(desired_q - q).tolist(), velocities=(desired_qd - qd).tolist())
@@ -318,7 +308,7 @@ class SimNode(Node):
         stamp = stamp_seconds(trajectory.header.stamp)
         command = command_from_points(
             list(trajectory.joint_names),
-            [(p.time_from_start.sec + p.time_from_start.nanosec * 1e-9, list(p.positions), list(p.velocities),
+            [(duration_seconds(p.time_from_start), list(p.positions), list(p.velocities),
               list(p.accelerations)) for p in trajectory.points],
             start_time=stamp if stamp > 0 else None,
         )
@@ -352,7 +342,7 @@ class SimNode(Node):
                                                            [t.position for t in request.goal_tolerance],
                                                            self.arm.default_goal_tolerance),
             }
-            goal_time = stamp_seconds(request.goal_time_tolerance)
+            goal_time = duration_seconds(request.goal_time_tolerance)
             if goal_time > 0:
                 tolerances["goal_time_tolerance"] = goal_time
             self._start_trajectory(request.trajectory, goal, tolerances)
@@ -427,7 +417,7 @@ class SimNode(Node):
         """Stop the loop, abort every running goal (and, from now on, every new one), and spin
         this node's executor until the loop has stopped, the aborted goals' execute callbacks have
         returned and their results have gone out to the clients: called by
-        :func:`actaim2.ros_main.spin_until` before it shuts the executor down (a tick still in
+        :func:`actaim2_ros.main.spin_until` before it shuts the executor down (a tick still in
         flight then would use the destroyed executor). Exit code 0."""
         executor = self.executor
         with self._lock:
@@ -484,7 +474,7 @@ class SimNode(Node):
             # Every observation published from now on is rendered from the new scene.
             self._next_camera_time = self.env.time
             self._sim_target = self.env.time  # the reset's settling ran ahead of the clock: continue from there
-            response.stamp = sim_time_msg(self.env.time)
+            response.stamp = seconds_stamp(self.env.time)
         self.get_logger().info(f"scene reset: {info.object_id} (seed {info.seed}, dof_fraction "
                                f"{np.round(fractions, 2).tolist() if request.dof_fractions else round(request.dof_fraction, 2)})")
         response.success = True

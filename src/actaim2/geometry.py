@@ -74,11 +74,6 @@ def rotation_angle(R_a: ArrayLike, R_b: ArrayLike) -> float:
     return float(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)))
 
 
-def is_unit_quaternion(q: ArrayLike, tol: float = 1e-3) -> bool:
-    q = np.asarray(q, dtype=float)
-    return bool(np.all(np.isfinite(q)) and abs(np.linalg.norm(q) - 1.0) <= tol)
-
-
 # ROS optical frame (x right, y down, z forward) from SAPIEN's camera-entity frame
 # (x forward, y left, z up): columns are the optical axes expressed in the entity frame.
 T_ENTITY_OPTICAL = np.array(

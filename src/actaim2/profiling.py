@@ -5,13 +5,16 @@ work to the recording profile under its name. Sections nest: a section's time co
 innermost one only (exclusive time), so the sections of one profile never overlap and the whole
 wall time is their sum plus what no section covered. Without a recording profile, ``section``
 returns one shared do-nothing context and ``timed`` adds one global read to a call.
+:func:`cpu_seconds` reads a whole process's CPU time, which does not depend on the machine's load.
 """
 
 from __future__ import annotations
 
 import functools
+import os
 import time
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Callable, Iterator, TypeVar
 
 F = TypeVar("F", bound=Callable)
@@ -99,3 +102,9 @@ def recording(profile: Profile) -> Iterator[Profile]:
         yield profile
     finally:
         _recording = previous
+
+
+def cpu_seconds(pid: int) -> float:
+    """CPU seconds a process has used so far, all threads (user + system, from /proc): load-independent."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime + stime

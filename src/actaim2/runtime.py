@@ -2,7 +2,7 @@
 
 ROS 2 Jazzy's default discovery range is the whole subnet (multicast leaves the machine).
 This project keeps DDS on the local host unless the user explicitly asks for more, so every
-entry point that starts rclpy calls :func:`apply_ros_defaults` *before* ``rclpy.init()``.
+entry point that starts ROS calls :func:`apply_ros_defaults` *before* the ROS client library starts.
 
 Fast DDS's default shared-memory segment (0.5 MB) is too small for this project's clouds
 (5 x 2.4 MB at 10 Hz lost 35-66 % of messages under load, 0 % with a 32 MB segment), so the
@@ -19,6 +19,7 @@ profile for a node restarted after a crash: its peers then reach it over UDP.
 from __future__ import annotations
 
 import os
+import signal
 from pathlib import Path
 
 DISCOVERY_RANGE_VAR = "ROS_AUTOMATIC_DISCOVERY_RANGE"
@@ -26,6 +27,9 @@ DEFAULT_DISCOVERY_RANGE = "LOCALHOST"
 FASTDDS_PROFILE_VAR = "FASTRTPS_DEFAULT_PROFILES_FILE"
 FASTDDS_PROFILE = Path(__file__).resolve().parent / "config" / "fastdds.xml"
 FASTDDS_UDP_PROFILE = FASTDDS_PROFILE.with_name("fastdds_udp.xml")
+# A node process writes every thread's stack to stderr on this signal (actaim2_ros.main, faulthandler:
+# written even while a thread holds the GIL); the launcher sends it to a node that will not stop.
+STACK_DUMP_SIGNAL = signal.SIGUSR1
 
 
 def apply_ros_defaults() -> None:

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import pytest
 import yaml
-from bagtools import DEFINITIONS, REFERENCE, joint_state, spec, tf_static
 from mcap.reader import make_reader
 
 from actaim2.bags import yaml_emit
 from actaim2.bags.definitions import SEPARATOR
 from actaim2.bags.writer import BagWriter
+from bagtools import DEFINITIONS, REFERENCE, joint_state, spec, tf_static
 
 JAZZY_MCAP = REFERENCE / "jazzy_mcap_abitobot"
 V9_MCAP = REFERENCE / "reference_metadata" / "rosbag2_rolling_2025-03_v9_mcap_metadata.yaml"

@@ -7,7 +7,6 @@ import threading
 import time
 
 import numpy as np
-from bagtools import REFERENCE, joint_state, spec, tf_static
 from rclpy.qos import qos_profile_sensor_data
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
@@ -15,7 +14,8 @@ from tf2_msgs.msg import TFMessage
 
 from actaim2.bags.metadata import TopicSpec
 from actaim2.bags.writer import BagWriter
-from actaim2_perception.transforms import TF_STATIC_LISTENER_QOS
+from actaim2_ros.transforms import TF_STATIC_LISTENER_QOS
+from bagtools import REFERENCE, joint_state, spec, tf_static
 from harness import wait_for
 
 T0 = 1_700_000_000 * 10**9

@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 import yaml
 from actaim2_msgs.msg import EpisodeEvent, Keypose
-from bagtools import TYPESTORE
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
@@ -20,7 +19,8 @@ from sensor_msgs.msg import JointState, PointCloud2
 from std_msgs.msg import Header
 from tf2_msgs.msg import TFMessage
 
-from actaim2_perception.transforms import TF_STATIC_QOS, matrix_to_transform
+from actaim2_ros.transforms import TF_STATIC_QOS, matrix_to_transform
+from bagtools import TYPESTORE
 from harness import wait_for
 
 EPISODE_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)

@@ -7,17 +7,17 @@ import hashlib
 import shutil
 import time
 
-import bagtools
 import pytest
 import yaml
-from bagtools import T0, joint_state, read_anyreader, read_mcap_package, spec
 
+import bagtools
 from actaim2.bags import salvage
 from actaim2.bags.recorder import Recorder
 from actaim2.bags.reindex import reindex
 from actaim2.bags.source import BagSource
 from actaim2.bags.writer import BagWriter
 from actaim2.finetune.bag_episodes import BagProblem, read_episodes
+from bagtools import T0, joint_state, read_anyreader, read_mcap_package, spec
 from harness import wait_for
 
 

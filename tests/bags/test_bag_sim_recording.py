@@ -5,9 +5,9 @@ from __future__ import annotations
 import time
 
 import yaml
-from bagtools import TYPESTORE
 from rosbags.highlevel import AnyReader
 
+from bagtools import TYPESTORE
 from harness import wait_for
 
 SIM = dict(rig="azure_kinect", render_path="raycast", camera_rate=2.0, category="storage_furniture", instance=0, seed=0)

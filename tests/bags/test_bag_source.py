@@ -5,11 +5,19 @@ import threading
 import time
 
 import pytest
-from bagtools import REFERENCE, REFERENCE_BAGS, SERVICE_EVENT_TOPICS, TYPESTORE, joint_state, spec, tf_static
 
-from actaim2.bags.playback import PlayOptions, Player, parse_remaps
+from actaim2.bags.playback import Player, PlayOptions, parse_remaps
 from actaim2.bags.source import BagSource
 from actaim2.bags.writer import BagWriter
+from bagtools import (
+    REFERENCE,
+    REFERENCE_BAGS,
+    SERVICE_EVENT_TOPICS,
+    TYPESTORE,
+    joint_state,
+    spec,
+    tf_static,
+)
 
 T0 = 1_700_000_000 * 10**9
 

@@ -8,16 +8,24 @@ import threading
 import numpy as np
 import pytest
 import yaml
-from bagtools import (
-    T0, TYPESTORE, FullDisk, cloud, joint_state, read_anyreader, read_mcap_package, spec,
-    tf_static, write_bag,
-)
 from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 
 from actaim2.bags import salvage
 from actaim2.bags.recorder import Recorder
 from actaim2.bags.writer import BagWriter
+from bagtools import (
+    T0,
+    TYPESTORE,
+    FullDisk,
+    cloud,
+    joint_state,
+    read_anyreader,
+    read_mcap_package,
+    spec,
+    tf_static,
+    write_bag,
+)
 
 
 def check_content(messages, expected):

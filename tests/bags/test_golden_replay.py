@@ -12,7 +12,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import PointCloud2
 
 import golden
-from actaim2_perception.pointcloud2 import from_msg
+from actaim2_ros.pointcloud2 import from_msg
 from harness import REPO, wait_for
 
 BAGS = [REPO / "bags" / "sim_azure_kinect_pull", REPO / "bags" / "sim_azure_kinect_push"]

@@ -7,7 +7,8 @@ import subprocess
 import sys
 import time
 
-from actaim2.bench.processes import cpu_seconds, private_ros_env, ros_run_command, start_logged, stop_group
+from actaim2.bench.processes import private_ros_env, ros_run_command, start_logged, stop_group
+from actaim2.profiling import cpu_seconds
 
 SPEAK = "import sys; print('out', flush=True); print('err', file=sys.stderr, flush=True)"
 

@@ -9,8 +9,8 @@ from control_msgs.action import GripperCommand
 from rclpy.action import ActionClient, ActionServer
 from rclpy.node import Node
 
-from actaim2.ros_main import BackgroundSpinner
-from actaim2_control.action_client import LockedActionClient
+from actaim2_ros.action_client import LockedActionClient
+from actaim2_ros.main import BackgroundSpinner
 from harness import wait_for
 
 

@@ -15,7 +15,6 @@ import pytest
 from actaim2.control.model import RobotModel
 from actaim2.geometry import matrix_to_pose, rotation_angle
 from actaim2.robots import load_robot_spec
-
 from harness import matched, wait_for
 
 SCENE = {"category": "table", "instance": 0, "seed": 0}
@@ -79,7 +78,8 @@ class Recorder:
 class KeyposeClient:
     def __init__(self, node) -> None:
         from actaim2_msgs.action import ExecuteKeypose
-        from actaim2_control.action_client import LockedActionClient
+
+        from actaim2_ros.action_client import LockedActionClient
 
         self.Action = ExecuteKeypose
         self.client = LockedActionClient(node, ExecuteKeypose, "/execute_keypose")
@@ -258,7 +258,7 @@ def test_topic_fallback_and_cloud_obstacles(start_node, ros_node, panda):
     from rclpy.qos import qos_profile_sensor_data
     from sensor_msgs.msg import PointCloud2
 
-    from actaim2_perception.pointcloud2 import to_msg
+    from actaim2_ros.pointcloud2 import to_msg
 
     recorder, client, control = start_cell(start_node, ros_node, {
         "arm_action": "/no_such_controller/follow_joint_trajectory", "server_wait": 0.5, "use_cloud": True, "cloud_wait": 3.0})

@@ -11,7 +11,6 @@ import numpy as np
 from actaim2.control.model import RobotModel
 from actaim2.geometry import matrix_to_pose
 from actaim2.robots import load_robot_spec
-
 from harness import wait_for
 from test_control_node import KeyposeClient, Recorder
 

@@ -9,9 +9,9 @@ from actaim2.control.executor import KeyposeRunner
 from actaim2.control.ik import IKSolver
 from actaim2.control.model import RobotModel
 from actaim2.control.planner import KeyposePlanner
-from actaim2.rollout.sim_executor import SimEnvExecutor
-from actaim2.keypose import Keypose
 from actaim2.geometry import matrix_to_pose, rotation_angle
+from actaim2.keypose import Keypose
+from actaim2.rollout.sim_executor import SimEnvExecutor
 
 
 @pytest.mark.parametrize("robot", ["kinova_j2s6s200", "panda"])

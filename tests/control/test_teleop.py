@@ -8,8 +8,19 @@ import pytest
 from actaim2.control.collision import CollisionChecker, Workspace
 from actaim2.control.ik import IKOptions, IKSolver
 from actaim2.control.model import RobotModel
-from actaim2.control.teleop import (AskLabel, End, Gripper, Jog, JogSettings, Label, Mark, Message, Quit, Start,
-                                    TeleopSession)
+from actaim2.control.teleop import (
+    AskLabel,
+    End,
+    Gripper,
+    Jog,
+    JogSettings,
+    Label,
+    Mark,
+    Message,
+    Quit,
+    Start,
+    TeleopSession,
+)
 from actaim2.geometry import rotation_angle
 from actaim2.keypose import GRASP, INIT, MANIPULATE, REACH
 from actaim2.robots import load_robot_spec

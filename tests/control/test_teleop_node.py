@@ -16,7 +16,6 @@ import yaml
 
 from actaim2.control.model import RobotModel
 from actaim2.robots import load_robot_spec
-
 from harness import matched, wait_for
 
 SIM_PARAMS = {"robot": "panda", "camera_rate": 0.0, "render_path": "raycast", "category": "table", "instance": 0, "seed": 0}

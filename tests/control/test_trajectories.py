@@ -8,8 +8,8 @@ from actaim2.control.collision import CollisionChecker
 from actaim2.control.ik import IKSolver
 from actaim2.control.model import RobotModel
 from actaim2.control.planner import KeyposePlanner, PlannerOptions, PlanningError
-from actaim2.keypose import GRASP, INIT, MANIPULATE, REACH
 from actaim2.control.trajectory import JointPlanner, Limits, State
+from actaim2.keypose import GRASP, INIT, MANIPULATE, REACH
 from actaim2.robots import load_robot_spec
 
 ROBOTS = ("panda", "kinova_j2s6s200")

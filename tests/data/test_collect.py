@@ -15,8 +15,17 @@ import time
 import numpy as np
 import pytest
 
-from actaim2.data.collect import (SKIPPED_FILE, CollectConfig, TrajectoryCollector, check_resumable, collect, derive_seed,
-                                  per_object, stage_tasks, top_up_tasks)
+from actaim2.data.collect import (
+    SKIPPED_FILE,
+    CollectConfig,
+    TrajectoryCollector,
+    check_resumable,
+    collect,
+    derive_seed,
+    per_object,
+    stage_tasks,
+    top_up_tasks,
+)
 from actaim2.data.storage import MAX_TRAJECTORY_BYTES, DatasetReader, decode_trajectory
 from actaim2.data.torch_dataset import KeyframeDataset, ModeDataset
 from actaim2.data.trajectory import OBSERVATION_NAMES

@@ -8,9 +8,8 @@ import pytest
 
 from actaim2.data.actions import ActionSequence
 from actaim2.data.gmm_sampler import GMMAdaptiveSampler, GMMConfig
-from actaim2.data.grasp import AntipodalGraspProposer
+from actaim2.data.grasp import AntipodalConfig, AntipodalGraspProposer
 from actaim2.data.grasp_sampler import HeuristicGraspSampler
-from actaim2.data.grasp import AntipodalConfig
 from actaim2.data.gripper import collides
 from actaim2.data.object_cloud import CloudConfig, ObjectCloud, part_segments
 from actaim2.data.random_sampler import RandomSampler, SamplingConfig

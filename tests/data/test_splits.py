@@ -3,8 +3,20 @@ from __future__ import annotations
 
 import pytest
 
-from actaim2.data.splits import EXTRA_TRAIN, TRAIN, UNSEEN_CATEGORY, UNSEEN_INSTANCE, check_no_leak, split_of
-from actaim2.sim.objects.catalog import HELDOUT_CATEGORIES, TRAIN_CATEGORIES, object_id, split_instances
+from actaim2.data.splits import (
+    EXTRA_TRAIN,
+    TRAIN,
+    UNSEEN_CATEGORY,
+    UNSEEN_INSTANCE,
+    check_no_leak,
+    split_of,
+)
+from actaim2.sim.objects.catalog import (
+    HELDOUT_CATEGORIES,
+    TRAIN_CATEGORIES,
+    object_id,
+    split_instances,
+)
 
 
 def test_every_catalogued_object_has_exactly_one_split():

@@ -7,7 +7,13 @@ import tarfile
 import numpy as np
 import pytest
 
-from actaim2.data.storage import MAX_TRAJECTORY_BYTES, DatasetReader, DatasetWriter, encode_trajectory, write_labels
+from actaim2.data.storage import (
+    MAX_TRAJECTORY_BYTES,
+    DatasetReader,
+    DatasetWriter,
+    encode_trajectory,
+    write_labels,
+)
 from actaim2.data.trajectory import OBSERVATION_NAMES, CameraImage
 
 

@@ -6,7 +6,14 @@ import pytest
 
 from actaim2.data.labelling import calibrate, object_reaches, success_scores, visual_labels
 from actaim2.data.part_motion import PartMotion
-from actaim2.data.success import SuccessModel, calibrate_threshold, change, label_metrics, motion_features, part_reaches
+from actaim2.data.success import (
+    SuccessModel,
+    calibrate_threshold,
+    change,
+    label_metrics,
+    motion_features,
+    part_reaches,
+)
 from actaim2.data.trajectory import ObjectState, ground_truth_success
 
 

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import pytest
 
+from actaim2.artifact.serving import DEFAULT_SERVING
 from actaim2.eval.methods import PSEUDO_GROUPING
-from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, NOISE_SCALE
 from tiny_checkpoint import CLUSTERS, make_checkpoint, make_encoder
 
 SMOKE_OBJECTS = 3  # presets.PRESETS["smoke"]: storage_furniture 0 and 8, box 0
@@ -118,7 +118,7 @@ def test_other_checkpoint_refused(checkpoints, tmp_path) -> None:
     out.mkdir()
     (out / "run.json").write_text(json.dumps({"eval_set_version": 1, "robot": "panda", "rig": "ring5",
                                               "hand_half_turn": True, "pseudo_grouping": PSEUDO_GROUPING,
-                                              "keypose_alternatives": KEYPOSE_ALTERNATIVES, "noise_scale": NOISE_SCALE,
+                                              "keypose_alternatives": DEFAULT_SERVING.keypose_alternatives, "noise_scale": DEFAULT_SERVING.noise_scale,
                                               "methods": {"actaim2": "0" * 64}}))
     result = subprocess.run(evaluate("--smoke", "--out", out, "--checkpoint", checkpoints["cgmvae"], "--methods", "actaim2"),
                             capture_output=True, text=True, timeout=300)

@@ -7,7 +7,6 @@ import subprocess
 
 import numpy as np
 import pytest
-from tiny_checkpoint import RESOLUTION, make_checkpoint
 
 from actaim2.eval.methods import PSEUDO_GROUPING
 from actaim2.eval.results import RunMismatchError, check_run
@@ -16,6 +15,7 @@ from actaim2.perception.config import load_perception_config
 from actaim2.policy.inference import PolicyModel
 from actaim2.policy.views import Views
 from actaim2.robots import load_robot_spec
+from tiny_checkpoint import RESOLUTION, make_checkpoint
 
 RUN = {"eval_set_version": 1, "robot": "panda", "rig": "ring5", "hand_half_turn": True, "pseudo_grouping": PSEUDO_GROUPING,
        "keypose_alternatives": 4, "methods": {"random": "random"}}

@@ -13,11 +13,11 @@ import yaml
 
 from actaim2.cli import main as cli
 from actaim2.eval.evalset import EVAL_SET_VERSION
-from actaim2.eval.protocol import (
+from actaim2.eval.paired import component_groups
+from actaim2.protocol.lock import (
     ProtocolLock,
     append_ledger,
     check_run,
-    component_groups,
     file_sha256,
     guarded_ids,
     protected,

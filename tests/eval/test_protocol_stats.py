@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from actaim2.eval.mode_ssr import GroupSample, halving_rule
 from actaim2.eval.paired import scene_pairs
-from actaim2.eval.stats import PairedCounts, bootstrap_weights, paired_bootstrap
+from actaim2.metrics.mode_ssr import GroupSample, halving_rule
+from actaim2.metrics.stats import PairedCounts, bootstrap_weights, paired_bootstrap
 
 OPEN, CLOSE = ("drawer", 1), ("drawer", -1)
 

@@ -12,14 +12,14 @@ import shutil
 
 import numpy as np
 import pytest
-from tiny_checkpoint import make_checkpoint
 
 from actaim2 import cli
+from actaim2.artifact import checkpoint
 from actaim2.eval.evalset import EVAL_SEED_BASE
 from actaim2.eval.standin import MODES, STATE_NAMES, mode_clusters, plan_episodes, summarise
 from actaim2.finetune.clusters import cluster_table
 from actaim2.sim.success import SUCCESS_FRACTION
-from actaim2.train import checkpoint
+from tiny_checkpoint import make_checkpoint
 
 LABELS = ["push", "push", "pull", "pull"]
 

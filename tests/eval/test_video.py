@@ -12,7 +12,6 @@ from actaim2.eval.tasks import EvalTask
 from actaim2.eval.video import FILM_SIZE, LABEL_HEIGHT, video_table, write_videos
 from actaim2.eval.worker import EvalWorker, WorkerSetup
 from actaim2.sim.render_path import vulkan_device_error
-
 from tiny_checkpoint import CLUSTERS, make_checkpoint
 
 

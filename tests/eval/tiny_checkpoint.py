@@ -14,13 +14,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from actaim2.artifact.checkpoint import perception_record
 from actaim2.data.encoder import ImageEncoder
 from actaim2.models.obs_encoder import ObsEncoderConfig
 from actaim2.models.selector_base import SelectorConfig
 from actaim2.models.view_geometry import CubePlacement
 from actaim2.perception.config import load_perception_config
 from actaim2.sim.cameras import make_rig
-from actaim2.train.checkpoint import perception_record
 from actaim2.train.config import PhaseConfig, TrainConfig
 from actaim2.train.data import TrainingData
 from actaim2.train.distributed import init_distributed

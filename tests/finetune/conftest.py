@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 import torch
+
 from sim_bags import DemoSpec, RecordedDemo, SimTeleop
 from torch_threads import one_torch_thread  # noqa: F401  (autouse for this folder)
 

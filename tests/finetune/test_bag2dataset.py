@@ -7,7 +7,6 @@ from __future__ import annotations
 import json
 
 import numpy as np
-from sim_bags import rewrite
 
 from actaim2 import cli
 from actaim2.data.encoder import ImageEncoder
@@ -19,6 +18,7 @@ from actaim2.perception.config import capture_part, load_perception_config
 from actaim2.sim.cameras import make_rig
 from actaim2.sim.env import WORKSPACE_CENTER
 from actaim2.sim.sensor_noise import SensorNoise
+from sim_bags import rewrite
 
 CAMERA = "azure_kinect"
 

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from sim_bags import TOPICS, T, _header, _serialize, _spec, cloud_msg, keypose_msg
 
 from actaim2.bags.recorder import Recorder
 from actaim2.bags.writer import BagWriter
 from actaim2.finetune.bag_episodes import _Episode, choose_clouds, read_episodes
 from actaim2.keypose import Keypose
+from sim_bags import TOPICS, T, _header, _serialize, _spec, cloud_msg, keypose_msg
 
 CAMERAS = {"/points2": "azure_kinect"}
 S = 10**9  # ns per s

@@ -9,10 +9,16 @@ import pytest
 import torch
 
 from actaim2 import cli
+from actaim2.artifact import checkpoint
 from actaim2.data.encoder import ImageEncoder
-from actaim2.data.labelling import EMBEDDINGS_FILE, ENCODER_FILE, REPORT_FILE, dataset_encoder, encoder_digest
+from actaim2.data.labelling import (
+    EMBEDDINGS_FILE,
+    ENCODER_FILE,
+    REPORT_FILE,
+    dataset_encoder,
+    encoder_digest,
+)
 from actaim2.finetune.bag2dataset import EncoderMismatchError, check_checkpoint_encoder
-from actaim2.train import checkpoint
 
 OTHER = "0123456789abcdef"
 

@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 
 from actaim2 import cli
+from actaim2.artifact import checkpoint
 from actaim2.data.labelling import EMBEDDINGS_FILE, encoder_digest
+from actaim2.data.storage import dataset_digest
 from actaim2.finetune.clusters import cluster_table, format_table
 from actaim2.finetune.finetune import FinetuneError, check_encoder
 from actaim2.finetune.heldout import heldout_rows
 from actaim2.models.obs_encoder import ObsEncoderConfig
 from actaim2.models.selector_base import SelectorConfig
-from actaim2.train import checkpoint
 from actaim2.train.config import PhaseConfig, TrainConfig
-from actaim2.train.data import dataset_digest
 
 PARENT_CONFIG = TrainConfig(
     phases=("selector", "predictor"),

@@ -17,8 +17,8 @@ import pytest
 
 from actaim2 import cli
 from actaim2.data.storage import DatasetReader
-from actaim2.export.lerobot_v21 import LeRobotFormatError, read_lerobot
 from actaim2.export.lerobot_v3 import EPISODE_COLUMNS, STATS, export_lerobot_v3, read_lerobot_v3
+from actaim2.export.lerobot_v21 import LeRobotFormatError, read_lerobot
 
 # meta/info.json of LeRobot v3.0 (lerobot/datasets/utils.py, create_empty_dataset_info)
 V3_INFO_KEYS = {"codebase_version", "robot_type", "total_episodes", "total_frames", "total_tasks",

@@ -12,6 +12,9 @@ from __future__ import annotations
 
 import time
 
+from actaim2_msgs.action import ExecuteKeypose
+from actaim2_msgs.msg import Keypose, OrthoViews
+from actaim2_msgs.srv import PredictKeypose, SampleMode
 from rclpy.action import ActionServer, CancelResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -19,10 +22,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from sensor_msgs.msg import PointCloud2
 
-from actaim2.ros_main import spin
-from actaim2_msgs.action import ExecuteKeypose
-from actaim2_msgs.msg import Keypose, OrthoViews
-from actaim2_msgs.srv import PredictKeypose, SampleMode
+from actaim2_ros.main import spin
 
 EXECUTION_STEPS = 10
 STEP_SECONDS_AT_FULL_SPEED = 0.02  # 10 steps: 0.2 s at velocity_scaling 1

@@ -82,10 +82,9 @@ def test_sample_mode_bad_request_gets_a_reason(ros_node, peer) -> None:
 
 
 def test_predict_keypose_across_processes(ros_node, peer) -> None:
-    from builtin_interfaces.msg import Time
-
     from actaim2_msgs.msg import Keypose
     from actaim2_msgs.srv import PredictKeypose
+    from builtin_interfaces.msg import Time
 
     request = PredictKeypose.Request(embedding=[0.25, 0.5], phase=Keypose.PHASE_GRASP, gripper_closed=True,
                                      not_before=Time(sec=12, nanosec=345))
@@ -139,9 +138,8 @@ def _round_trip(node, msg_type, topic: str, qos, make: Callable[[int], Any]) -> 
 
 
 def test_ortho_views_round_trip_exactly(ros_node, peer) -> None:
-    from rclpy.qos import QoSProfile
-
     from actaim2_msgs.msg import OrthoViews
+    from rclpy.qos import QoSProfile
 
     rng = np.random.default_rng(0)
     views, channels, size = ["top", "front", "back", "left", "right"], ["r", "g", "b", "x", "y", "z", "depth"], 16
@@ -204,8 +202,9 @@ def test_point_cloud_round_trips_exactly_with_sensor_qos(ros_node, peer) -> None
 # --- (c) action ---------------------------------------------------------------------------
 
 def _action_client(node):
-    from actaim2_control.action_client import LockedActionClient
     from actaim2_msgs.action import ExecuteKeypose
+
+    from actaim2_ros.action_client import LockedActionClient
 
     client = LockedActionClient(node, ExecuteKeypose, "/execute_keypose")
     assert client.wait_for_server(timeout_sec=DISCOVERY_TIMEOUT), "/execute_keypose not discovered"
@@ -223,10 +222,9 @@ def _goal(velocity_scaling: float, phase: int):
 
 
 def test_execute_keypose_goal_feedback_result(ros_node, peer) -> None:
-    from action_msgs.msg import GoalStatus
-
     from actaim2_msgs.action import ExecuteKeypose
     from actaim2_msgs.msg import Keypose
+    from action_msgs.msg import GoalStatus
 
     client = _action_client(ros_node)
     # Feedback is a topic and the result a service answer, and rclpy's ActionClient drops a goal's
@@ -243,7 +241,9 @@ def test_execute_keypose_goal_feedback_result(ros_node, peer) -> None:
     outcome = _result(goal_handle.get_result_async())
     assert outcome.status == GoalStatus.STATUS_SUCCEEDED
     assert outcome.result.success and outcome.result.message == ""
-    ours = lambda: [m.feedback for m in published if bytes(m.goal_id.uuid) == bytes(goal_handle.goal_id.uuid)]
+    def ours() -> list:
+        return [m.feedback for m in published if bytes(m.goal_id.uuid) == bytes(goal_handle.goal_id.uuid)]
+
     wait_for(lambda: bool(ours()) and ours()[-1].progress == pytest.approx(1.0), CALL_TIMEOUT)
     ros_node.destroy_subscription(topic)
     received = ours()

@@ -14,8 +14,15 @@ from tf2_msgs.msg import TFMessage
 
 from actaim2.launch import cli as launch_cli
 from actaim2.launch.cli import command_lines, default_graphs_file, share_dir, stop_all
-from actaim2.launch.graph import GraphError, NodeSpec, expand_share, load_graphs, parse_launch_xml, to_launch_xml
-from actaim2_perception.transforms import TF_STATIC_LISTENER_QOS
+from actaim2.launch.graph import (
+    GraphError,
+    NodeSpec,
+    expand_share,
+    load_graphs,
+    parse_launch_xml,
+    to_launch_xml,
+)
+from actaim2_ros.transforms import TF_STATIC_LISTENER_QOS
 from harness import REPO, wait_for
 
 GRAPHS = load_graphs(REPO / "actaim2_policy" / "launch" / "graphs.yaml")
@@ -155,11 +162,11 @@ def test_a_node_that_dies_is_reported_with_its_log_and_the_graph_stops(tmp_path)
     assert "ok stopped" in out
 
 
-# A node (started as every node executable is, through actaim2.ros_main.spin) that hangs in its shutdown.
+# A node (started as every node executable is, through actaim2_ros.main.spin) that hangs in its shutdown.
 HANGING_NODE = textwrap.dedent("""
     import sys, time
     from rclpy.node import Node
-    from actaim2.ros_main import spin
+    from actaim2_ros.main import spin
 
     def hang_in_destroy_node():
         while True:

@@ -1,11 +1,11 @@
-"""Every node declares its parameters from one table (actaim2.ros_params); the YAML files shipped
+"""Every node declares its parameters from one table (actaim2_ros.params); the YAML files shipped
 in <package>/config state the same names and defaults (overlays, loaded after them to change a
 few, only known names), and every parameter has a description."""
 from __future__ import annotations
 
 import pytest
 
-from actaim2.ros_params import yaml_differences
+from actaim2_ros.params import yaml_differences
 from harness import REPO
 
 

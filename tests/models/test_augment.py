@@ -4,7 +4,13 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from actaim2.models.augment import AugmentConfig, augment, sample_perturbation, transform_keypose, views_cloud
+from actaim2.models.augment import (
+    AugmentConfig,
+    augment,
+    sample_perturbation,
+    transform_keypose,
+    views_cloud,
+)
 from actaim2.models.rotation_bins import geodesic_deg
 from actaim2.models.view_geometry import CubePlacement
 from actaim2.perception.ortho_views import CHANNELS, VIEWS, project, render_views

@@ -4,8 +4,19 @@ from __future__ import annotations
 import pytest
 import torch
 
-from actaim2.models.predictor import ActionPredictor, PredictorConfig, PredictorOutput, decode_action, proprio_features
-from actaim2.models.view_geometry import decode_points_in_view, depth_targets, heatmap_targets, score_cells
+from actaim2.models.predictor import (
+    ActionPredictor,
+    PredictorConfig,
+    PredictorOutput,
+    decode_action,
+    proprio_features,
+)
+from actaim2.models.view_geometry import (
+    decode_points_in_view,
+    depth_targets,
+    heatmap_targets,
+    score_cells,
+)
 from actaim2.perception.ortho_views import CHANNELS, VIEWS
 from actaim2.train.action_loss import action_loss, action_targets
 from test_predictor import EMBEDDING, PLACEMENT, keyposes, random_views, tiny_config

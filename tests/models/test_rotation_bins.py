@@ -6,9 +6,18 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from actaim2.geometry import xyzw_to_wxyz
-from actaim2.models.rotation_bins import (HALF_TURN, ROTATION_BINS, SYMMETRY_REFERENCE, bins_to_euler, bins_to_quat,
-                                         canonical_grasp, geodesic_deg, grasp_geodesic_deg, quat_to_bins,
-                                         ranked_bins)
+from actaim2.models.rotation_bins import (
+    HALF_TURN,
+    ROTATION_BINS,
+    SYMMETRY_REFERENCE,
+    bins_to_euler,
+    bins_to_quat,
+    canonical_grasp,
+    geodesic_deg,
+    grasp_geodesic_deg,
+    quat_to_bins,
+    ranked_bins,
+)
 
 BOUND_DEG = 4.4  # sqrt(3) * 2.5 deg = 4.33 deg, the covering radius of 5-degree Euler bins
 

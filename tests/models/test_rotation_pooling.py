@@ -66,7 +66,9 @@ def test_point_pooling_reads_only_the_token_under_the_point():
     moved = centre + 1.0 * patch_side
     with torch.no_grad():
         a, b, c = (model(views, eps, proprio, point=p).rotation for p in (centre, nudged, moved))
-    cells = lambda p: (project_cube(p, 64) / 8).floor()
+    def cells(p: torch.Tensor) -> torch.Tensor:
+        return (project_cube(p, 64) / 8).floor()
+
     assert torch.equal(cells(centre), cells(nudged)) and not torch.equal(cells(centre), cells(moved))
     torch.testing.assert_close(a, b)
     assert not torch.allclose(a, c)

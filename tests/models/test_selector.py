@@ -150,7 +150,7 @@ def test_z_standardisation_does_not_blow_up_dimensions_constant_in_training():
 def test_eps_as_principal_components_is_whitened_on_training_z_and_survives_a_checkpoint(kind, tmp_path):
     """eps_dim > 0: eps = the first principal components of standardised z, unit variance and uncorrelated on the
     training set, the leading one along z's main direction of variation; the basis is saved with the weights."""
-    from actaim2.train.checkpoint import load_policy, policy_tensors, save
+    from actaim2.artifact.checkpoint import load_policy, policy_tensors, save
 
     torch.manual_seed(0)
     config = SelectorConfig(kind=kind, **{**SMALL, "eps_dim": 3})

@@ -4,7 +4,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from actaim2.perception.cloud_codec import CloudFormatError, Field, decode, encode, pack_rgb, unpack_rgb
+from actaim2.perception.cloud_codec import (
+    CloudFormatError,
+    Field,
+    decode,
+    encode,
+    pack_rgb,
+    unpack_rgb,
+)
 
 FLOAT32, FLOAT64, UINT8 = 7, 8, 2
 

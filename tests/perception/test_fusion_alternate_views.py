@@ -9,9 +9,19 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
 from sensor_msgs.msg import JointState, PointCloud2
 
 from actaim2.perception.ortho_views import CHANNELS, VIEWS, cube_to_world
-from actaim2_perception.pointcloud2 import to_msg
+from actaim2_ros.pointcloud2 import to_msg
 from harness import wait_for
-from test_fusion_node import CENTER, HALF, PERCEPTION, Inbox, azure_cloud, node_params, panda_joints, publish_until, send_tf_chain
+from test_fusion_node import (
+    CENTER,
+    HALF,
+    PERCEPTION,
+    Inbox,
+    azure_cloud,
+    node_params,
+    panda_joints,
+    publish_until,
+    send_tf_chain,
+)
 
 __all__ = ["azure_cloud", "panda_joints"]  # fixtures used by the test below
 

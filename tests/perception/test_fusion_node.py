@@ -20,13 +20,17 @@ from sensor_msgs.msg import Image, JointState, PointCloud2, PointField
 from tf2_msgs.msg import TFMessage
 
 from actaim2.geometry import T_ENTITY_OPTICAL, pose_to_matrix
-from actaim2.perception.config import PerceptionConfig, load_perception_config, save_perception_config
+from actaim2.perception.config import (
+    PerceptionConfig,
+    load_perception_config,
+    save_perception_config,
+)
 from actaim2.perception.ortho_views import CHANNELS, VIEWS, cube_to_world, project
 from actaim2.perception.synthetic import RaycastScene, box_mesh, robot_collision_meshes
 from actaim2.robots import load_robot_spec
 from actaim2.sim.cameras import look_at_optical
-from actaim2_perception.pointcloud2 import from_msg, to_msg
-from actaim2_perception.transforms import (
+from actaim2_ros.pointcloud2 import from_msg, to_msg
+from actaim2_ros.transforms import (
     TF_STATIC_LISTENER_QOS,
     StaticTransformPublisher,
     matrix_to_transform,

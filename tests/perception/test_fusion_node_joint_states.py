@@ -17,9 +17,9 @@ from sensor_msgs.msg import JointState, PointCloud2
 
 from actaim2.perception.ortho_views import CHANNELS, cube_to_world
 from actaim2.perception.self_filter import RobotSelfFilter, set_configuration
-from actaim2_perception.pointcloud2 import to_msg
+from actaim2_ros.pointcloud2 import to_msg
 from harness import wait_for
-from test_fusion_node import (  # noqa: F401 - azure_cloud and panda_joints are fixtures
+from test_fusion_node import (
     CENTER,
     HALF,
     T_BASE_DEPTH,
@@ -31,6 +31,8 @@ from test_fusion_node import (  # noqa: F401 - azure_cloud and panda_joints are 
     publish_until,
     send_tf_chain,
 )
+
+__all__ = ["azure_cloud", "panda_joints"]  # fixtures used by the tests below
 
 MS = 1_000_000
 

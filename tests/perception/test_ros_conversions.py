@@ -6,8 +6,8 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import PointCloud2
 
 from actaim2.geometry import pose_to_matrix
-from actaim2_perception.pointcloud2 import from_msg, to_msg
-from actaim2_perception.transforms import TF_STATIC_QOS, matrix_to_transform, transform_to_matrix
+from actaim2_ros.pointcloud2 import from_msg, to_msg
+from actaim2_ros.transforms import TF_STATIC_QOS, matrix_to_transform, transform_to_matrix
 
 
 def test_pointcloud2_round_trip_through_cdr():

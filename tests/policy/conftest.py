@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pytest
+
 from tiny_policy import TinyCheckpoint, make_checkpoint
 from torch_threads import single_torch_thread
 

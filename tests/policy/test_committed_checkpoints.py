@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from actaim2.artifact.checkpoint import encoder_path
 from actaim2.data.labelling import encoder_digest
 from actaim2.perception.config import load_perception_config
 from actaim2.policy.inference import PolicyModel
 from actaim2.policy.views import Views
-from actaim2.train.checkpoint import encoder_path
 
 CHECKPOINTS = Path(__file__).resolve().parents[2] / "actaim2_policy" / "checkpoints"
 SERVED = {"actaim2_ring5": "ring5", "actaim2_azure_kinect": "azure_kinect"}  # policy_node.yaml, policy_node_azure.yaml

@@ -9,10 +9,10 @@ import dataclasses
 import pytest
 import torch
 
+from actaim2.artifact import checkpoint
+from actaim2.artifact.checkpoint import perception_record
 from actaim2.models.predictor import ActionPredictor, PredictorConfig, proprio_features
 from actaim2.models.view_geometry import CubePlacement
-from actaim2.train import checkpoint
-from actaim2.train.checkpoint import perception_record
 from actaim2.train.config import load_config
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer

@@ -76,9 +76,14 @@ class Listener:
     """/episode, /keypose and the /execute_keypose goal statuses, as a recorder would see them."""
 
     def __init__(self, node):
-        from action_msgs.msg import GoalStatusArray
         from actaim2_msgs.msg import EpisodeEvent, Keypose
-        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_action_status_default
+        from action_msgs.msg import GoalStatusArray
+        from rclpy.qos import (
+            DurabilityPolicy,
+            QoSProfile,
+            ReliabilityPolicy,
+            qos_profile_action_status_default,
+        )
 
         self.events, self.keyposes, self.statuses = [], [], []
         self.lock = threading.Lock()

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 import torch
 
+from actaim2.artifact import checkpoint
+from actaim2.artifact.checkpoint import perception_record
 from actaim2.models.view_geometry import CubePlacement
 from actaim2.perception.ortho_views import CHANNELS, VIEWS
 from actaim2.policy.inference import PolicyModel
 from actaim2.policy.views import Views
-from actaim2.train import checkpoint
-from actaim2.train.checkpoint import perception_record
 from actaim2.train.config import load_config
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import POLICY, Trainer

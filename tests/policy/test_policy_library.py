@@ -10,13 +10,20 @@ import pytest
 
 from actaim2.models.rotation_bins import grasp_geodesic_deg
 from actaim2.perception.config import load_perception_config
-from actaim2.policy.episodes import EpisodeLog, EpisodeRecord, PhaseRecord, largest_change, plan_episodes, summary_table
+from actaim2.perception.ortho_views import VIEWS
+from actaim2.policy.episodes import (
+    EpisodeLog,
+    EpisodeRecord,
+    PhaseRecord,
+    largest_change,
+    plan_episodes,
+    summary_table,
+)
 from actaim2.policy.inference import PolicyLoadError, PolicyModel
 from actaim2.policy.locate import describe, resolve_checkpoint
 from actaim2.policy.requests import RequestError, check_fresh, is_transient
 from actaim2.policy.retry import Backoff, wait_until
 from actaim2.policy.views import Views, accept_views
-from actaim2.perception.ortho_views import VIEWS
 from tiny_policy import TARGETS
 
 

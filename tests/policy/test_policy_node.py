@@ -61,6 +61,7 @@ class Client:
     def __init__(self, node, prefix: str = "", views_topic: str = "/ortho_views"):
         from actaim2_msgs.msg import InteractionMode, OrthoViews
         from actaim2_msgs.srv import PredictKeypose, SampleMode
+
         from actaim2_policy.policy_node import MODE_QOS, VIEWS_QOS
 
         self.node = node

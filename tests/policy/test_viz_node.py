@@ -23,7 +23,7 @@ from websockets.sync.client import connect
 
 from actaim2.perception.config import load_perception_config
 from actaim2.perception.ortho_views import VIEWS
-from harness import NodeProcess, REPO, wait_for
+from harness import REPO, NodeProcess, wait_for
 
 # The Foxglove app offers both names of the protocol; the SDK's server picks the newer one.
 SUBPROTOCOLS = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
@@ -104,17 +104,18 @@ def graph(tmp_path_factory):
 
 
 def test_a_foxglove_client_gets_every_channel_decoded(ros_node, graph):
-    from actaim2_msgs.msg import EpisodeEvent, Keypose as KeyposeMsg, OrthoViews
+    from actaim2_msgs.msg import EpisodeEvent, OrthoViews
+    from actaim2_msgs.msg import Keypose as KeyposeMsg
     from actaim2_msgs.srv import PredictKeypose, SampleMode
     from geometry_msgs.msg import TransformStamped
     from rclpy.qos import qos_profile_sensor_data
     from sensor_msgs.msg import JointState, PointCloud2
     from tf2_msgs.msg import TFMessage
 
-    from actaim2_perception.pointcloud2 import to_msg
-    from actaim2_policy.viz_node import KEYPOSE_QOS, LATCHED_QOS, VIEWS_QOS
-    from actaim2.ros_keypose import keypose_msg
     from actaim2.keypose import Keypose
+    from actaim2_policy.viz_node import KEYPOSE_QOS, LATCHED_QOS, VIEWS_QOS
+    from actaim2_ros.keypose import keypose_msg
+    from actaim2_ros.pointcloud2 import to_msg
 
     policy, viz = graph
     assert wait_for(lambda: "viz_node ready" in viz.output(), 60.0), viz.output()

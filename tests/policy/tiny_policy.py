@@ -16,13 +16,17 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from actaim2.models.selector_base import SelectorConfig
+from actaim2.artifact.checkpoint import perception_record
 from actaim2.models.obs_encoder import ObsEncoderConfig
+from actaim2.models.selector_base import SelectorConfig
 from actaim2.models.view_geometry import CubePlacement
-from actaim2.perception.config import PerceptionConfig, load_perception_config, save_perception_config
+from actaim2.perception.config import (
+    PerceptionConfig,
+    load_perception_config,
+    save_perception_config,
+)
 from actaim2.perception.fusion import CameraCloud
 from actaim2.perception.pipeline import Perception
-from actaim2.train.checkpoint import perception_record
 from actaim2.train.config import PhaseConfig, TrainConfig
 from actaim2.train.data import TrainingData
 from actaim2.train.distributed import init_distributed

@@ -6,8 +6,16 @@ import numpy as np
 import pytest
 import sapien
 
+from actaim2.rollout.expert import (
+    GRASP,
+    INIT,
+    MANIPULATE,
+    REACH,
+    ExpertTask,
+    ScriptedExpert,
+    expert_tasks,
+)
 from actaim2.sim.env import SimEnv
-from actaim2.rollout.expert import GRASP, INIT, MANIPULATE, REACH, ExpertTask, ScriptedExpert, expert_tasks
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ from actaim2.sim.observe import CameraRig
 from actaim2.sim.render_raycast import entity_colour
 from actaim2.sim.render_sapien import SapienRenderer
 from actaim2.sim.sensor_noise import SensorNoise
-from actaim2_perception.pointcloud2 import from_msg
+from actaim2_ros.pointcloud2 import from_msg
 from harness import wait_for
 from test_cameras import BOX_CENTER, build_scene, needs_vulkan
 
@@ -169,7 +169,6 @@ def test_the_renderer_tells_glossy_metal_from_matte():
 def floor_and_box():
     scene, floor, box = build_scene(render=False)
     yield floor, box, lambda noise: CameraRig(scene, [KINECT], "raycast", noise=noise, seed=0).observe(0.0).frames[KINECT.name]
-    del scene
 
 
 def test_registration_shadow_behind_a_foreground_edge(floor_and_box):

@@ -17,8 +17,22 @@ from actaim2.sim.objects.hulls import HullCache
 from actaim2.sim.objects.mesh import Mesh, read_obj, solid_fraction
 from actaim2.sim.objects.partnet import CONTINUOUS_RANGE, category_name, read_object_folder
 from actaim2.sim.objects.prepare import find_object_folders, prepare_objects
-from actaim2.sim.objects.sizing import WORKSPACE_CENTER, WORKSPACE_HALF_EXTENT, WORKSPACE_MARGIN, fit_object
-from partnet_shared import BAR_GAP_POINT, HANDLE, OBJECTS, bad_folders, box, make_object, shared_partnet, urdf_limits
+from actaim2.sim.objects.sizing import (
+    WORKSPACE_CENTER,
+    WORKSPACE_HALF_EXTENT,
+    WORKSPACE_MARGIN,
+    fit_object,
+)
+from partnet_shared import (
+    BAR_GAP_POINT,
+    HANDLE,
+    OBJECTS,
+    bad_folders,
+    box,
+    make_object,
+    shared_partnet,
+    urdf_limits,
+)
 
 
 @pytest.fixture(scope="module")

@@ -19,9 +19,9 @@ from actaim2.rollout.push import ScriptedPush
 from actaim2.sim.contacts import ContactMonitor
 from actaim2.sim.env import SimEnv
 from actaim2.sim.objects.hulls import HullCache
-from actaim2.sim.objects.surface import surface_points
 from actaim2.sim.objects.mesh import write_obj
 from actaim2.sim.objects.physics_table import COUNTERBALANCED
+from actaim2.sim.objects.surface import surface_points
 from partnet_shared import box, shared_partnet
 
 SPHERE_RADIUS = 0.015

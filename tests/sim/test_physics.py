@@ -10,7 +10,12 @@ from actaim2.sim.objects import catalog
 from actaim2.sim.objects.categories import LAYOUTS
 from actaim2.sim.objects.mass import link_mass_properties
 from actaim2.sim.objects.physics_table import (
-    BISTABLE, COUNTERBALANCED, JOINT_TABLE, MATERIALS, category_dynamics, part_material,
+    BISTABLE,
+    COUNTERBALANCED,
+    JOINT_TABLE,
+    MATERIALS,
+    category_dynamics,
+    part_material,
 )
 
 

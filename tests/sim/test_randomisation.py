@@ -14,7 +14,12 @@ import numpy as np
 import pytest
 
 from actaim2.sim.env import SimEnv
-from actaim2.sim.randomisation import DEFAULT_FILE, DomainRandomisation, colour_temperature_rgb, load_randomisation
+from actaim2.sim.randomisation import (
+    DEFAULT_FILE,
+    DomainRandomisation,
+    colour_temperature_rgb,
+    load_randomisation,
+)
 
 ROBOT = "kinova_j2s6s200"
 OBJECT = ("storage_furniture", 0)

@@ -24,9 +24,9 @@ from tf2_msgs.msg import TFMessage
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from actaim2.robots import load_robot_spec
-from actaim2_control.action_client import LockedActionClient
-from actaim2_perception.pointcloud2 import from_msg
-from actaim2_perception.transforms import TF_STATIC_LISTENER_QOS, transform_to_matrix
+from actaim2_ros.action_client import LockedActionClient
+from actaim2_ros.pointcloud2 import from_msg
+from actaim2_ros.transforms import TF_STATIC_LISTENER_QOS, transform_to_matrix
 from harness import NodeProcess, wait_for
 
 SPEC = load_robot_spec("panda")

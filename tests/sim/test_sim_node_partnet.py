@@ -16,12 +16,12 @@ from rclpy.qos import qos_profile_sensor_data
 from sensor_msgs.msg import JointState, PointCloud2
 from tf2_msgs.msg import TFMessage
 
-from actaim2_control.action_client import LockedActionClient
-from actaim2_perception.pointcloud2 import from_msg
-from actaim2_perception.transforms import TF_STATIC_LISTENER_QOS
-from harness import NodeProcess, wait_for
 from actaim2.sim.objects.partnet import read_object_folder
 from actaim2.sim.objects.sizing import fit_object
+from actaim2_ros.action_client import LockedActionClient
+from actaim2_ros.pointcloud2 import from_msg
+from actaim2_ros.transforms import TF_STATIC_LISTENER_QOS
+from harness import NodeProcess, wait_for
 from partnet_shared import OBJECTS, bad_folders, make_object, shared_partnet, urdf_limits
 from test_sim_node import ARM, Inbox, send, stamp_ns, tf_static_chain, trajectory
 

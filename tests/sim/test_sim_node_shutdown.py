@@ -18,7 +18,7 @@ from control_msgs.action import FollowJointTrajectory, GripperCommand
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from actaim2.robots import load_robot_spec
-from actaim2_control.action_client import LockedActionClient
+from actaim2_ros.action_client import LockedActionClient
 from harness import wait_for
 
 SPEC = load_robot_spec("panda")

@@ -7,9 +7,14 @@ import numpy as np
 import pytest
 import torch
 
-from actaim2.train import checkpoint
-from actaim2.train.checkpoint import (CorruptCheckpointError, PerceptionMismatchError, WeightsMismatchError, load_policy,
-                                      perception_record)
+from actaim2.artifact import checkpoint
+from actaim2.artifact.checkpoint import (
+    CorruptCheckpointError,
+    PerceptionMismatchError,
+    WeightsMismatchError,
+    load_policy,
+    perception_record,
+)
 from actaim2.train.config import PhaseConfig
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import POLICY, STATE, Trainer

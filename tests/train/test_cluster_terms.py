@@ -10,9 +10,14 @@ import numpy as np
 import pytest
 import torch
 
-from actaim2.train.checkpoint import perception_record
+from actaim2.artifact.checkpoint import perception_record
 from actaim2.train.distributed import init_distributed
-from actaim2.train.elbo import COVERAGE_RELAXATION, cluster_coverage, cluster_imbalance, selector_loss
+from actaim2.train.elbo import (
+    COVERAGE_RELAXATION,
+    cluster_coverage,
+    cluster_imbalance,
+    selector_loss,
+)
 from actaim2.train.loop import Trainer
 from synthetic import PLACEMENT, make_dataset
 from test_stop_gradient import TINY

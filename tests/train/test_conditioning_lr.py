@@ -8,8 +8,8 @@ import dataclasses
 import pytest
 import torch
 
+from actaim2.artifact.checkpoint import perception_record
 from actaim2.models.predictor import CONDITIONING_LAYERS
-from actaim2.train.checkpoint import perception_record
 from actaim2.train.config import PhaseConfig
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer

@@ -14,7 +14,7 @@ import numpy as np
 import torch
 import torch.multiprocessing as mp
 
-from actaim2.train.checkpoint import perception_record
+from actaim2.artifact.checkpoint import perception_record
 from actaim2.train.distributed import init_distributed, rank_slice, shutdown, wrap
 from actaim2.train.elbo import selector_loss
 from actaim2.train.loop import Trainer

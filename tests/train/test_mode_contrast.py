@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from actaim2.train.checkpoint import perception_record
+from actaim2.artifact.checkpoint import perception_record
 from actaim2.train.data import TrainingData
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer

@@ -15,10 +15,10 @@ import time
 import numpy as np
 import torch
 
+from actaim2.artifact.checkpoint import perception_record
 from actaim2.models.obs_encoder import ObsEncoderConfig
 from actaim2.models.predictor import decode_action, proprio_features
 from actaim2.models.selector_base import SelectorConfig
-from actaim2.train.checkpoint import perception_record
 from actaim2.train.config import PhaseConfig, TrainConfig
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer

@@ -7,8 +7,8 @@ import dataclasses
 import numpy as np
 import pytest
 
+from actaim2.artifact.checkpoint import perception_record
 from actaim2.data.storage import sampler_of, trajectory_id
-from actaim2.train.checkpoint import perception_record
 from actaim2.train.config import TrainConfig
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import torch
 
+from actaim2.artifact.checkpoint import perception_record
 from actaim2.models.predictor import PredictorOutput
 from actaim2.train.action_loss import ActionTargets, action_loss, rotation_soft_targets
-from actaim2.train.checkpoint import perception_record
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer
 from synthetic import PLACEMENT, make_dataset

@@ -12,11 +12,16 @@ import numpy as np
 import pytest
 import torch
 
+from actaim2.artifact.checkpoint import perception_record
 from actaim2.data.storage import object_of
-from actaim2.train.checkpoint import perception_record
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer
-from actaim2.train.served_eps import nearest_centre_pools, neighbour_eps_pools, pick_from_pools, served_eps_pools
+from actaim2.train.served_eps import (
+    nearest_centre_pools,
+    neighbour_eps_pools,
+    pick_from_pools,
+    served_eps_pools,
+)
 from synthetic import PLACEMENT, make_dataset
 from test_stop_gradient import TINY
 from torch_threads import single_torch_thread

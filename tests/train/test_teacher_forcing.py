@@ -7,9 +7,9 @@ import dataclasses
 import numpy as np
 import torch
 
+from actaim2.artifact.checkpoint import perception_record
 from actaim2.models.predictor import proprio_features
 from actaim2.train.action_loss import action_loss, action_targets
-from actaim2.train.checkpoint import perception_record
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer
 from synthetic import PLACEMENT, make_dataset

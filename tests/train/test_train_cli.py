@@ -14,6 +14,7 @@ import pytest
 import torch
 import yaml
 
+from actaim2.artifact.checkpoint import encoder_path, load_policy, perception_record
 from actaim2.cli import main as cli_main
 from actaim2.data.actions import ActionSequence
 from actaim2.data.encoder import ImageEncoder
@@ -23,7 +24,6 @@ from actaim2.data.trajectory import OBSERVATION_NAMES, CameraImage, ObjectState,
 from actaim2.perception.config import capture_part, load_perception_config
 from actaim2.perception.synthetic import RaycastScene, box_mesh
 from actaim2.sim.cameras import ring5
-from actaim2.train.checkpoint import encoder_path, load_policy, perception_record
 
 TARGET = np.array([0.75, 0.0, 0.2])
 Z_DIM = 10

@@ -10,14 +10,25 @@ import numpy as np
 import pytest
 import torch
 
+from actaim2.artifact.checkpoint import perception_record
+from actaim2.data.storage import trajectory_outcome
 from actaim2.data.trajectory import PHASES
-from actaim2.train.checkpoint import perception_record
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer
-from actaim2.data.storage import trajectory_outcome
-from actaim2.train.validation import (DRAWN_FOLLOWING_PHASES, EMBEDDINGS, action_figures, drawn_following, label_mode_ssr,
-                                     mode_chain_figures, outcome_figures, outcome_rates, placement_rows, predict_keyframes, swap_rates,
-                                     swapped_following)
+from actaim2.train.validation import (
+    DRAWN_FOLLOWING_PHASES,
+    EMBEDDINGS,
+    action_figures,
+    drawn_following,
+    label_mode_ssr,
+    mode_chain_figures,
+    outcome_figures,
+    outcome_rates,
+    placement_rows,
+    predict_keyframes,
+    swap_rates,
+    swapped_following,
+)
 from synthetic import PLACEMENT, make_dataset
 from test_stop_gradient import TINY
 

@@ -18,7 +18,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from browser import open_page
 
 from actaim2.viz.recording import Sample, write_recording
 from actaim2.viz.sources import (
@@ -28,6 +27,7 @@ from actaim2.viz.sources import (
     kind_of,
 )
 from actaim2.viz.web_viewer import ViewerServer, viewer_assets
+from browser import open_page
 
 ROOT = Path(__file__).resolve().parents[2]
 BAGS = ROOT / "bags"

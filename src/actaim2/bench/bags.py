@@ -1,6 +1,6 @@
 """`actaim2 bench bags`: bag_recorder throughput, CPU and loss under a ring5 replay; bag_player timing.
 
-The load is the one of issue 14: five ring5 clouds (320x240, xyz + rgb, point_step 32, 2.46 MB
+The load is a ring5 rig's: five ring5 clouds (320x240, xyz + rgb, point_step 32, 2.46 MB
 each) at 10 Hz plus /joint_states at 100 Hz and a latched /tf_static, ~123 MB/s. It is made as a
 real replay: a one-second source bag of ray-cast ring5 frames (``actaim2.bench.perception``'s
 scene, each frame with its own per-point depth noise so compression sees sensor-like data) is
@@ -32,7 +32,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from actaim2.bench.processes import cpu_seconds, private_ros_env, ros_run_command, start_logged, stop_group
+from actaim2.bench.processes import private_ros_env, ros_run_command, start_logged, stop_group
+from actaim2.profiling import cpu_seconds
 
 CLOUD_RATE, JOINT_RATE = 10.0, 100.0  # Hz at rate factor 1
 T0 = 1_700_000_000 * 10**9
@@ -50,7 +51,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def make_source_bag(path: Path, frames: int) -> dict[str, int]:
     """One second of ring5 clouds at 10 Hz + joint states at 100 Hz + /tf_static, uncompressed."""
-    from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+    from rosbags.interfaces import (
+        Qos,
+        QosDurability,
+        QosHistory,
+        QosLiveliness,
+        QosReliability,
+        QosTime,
+    )
     from rosbags.typesys import Stores, get_typestore
 
     from actaim2.bags.definitions import MessageDefinitions

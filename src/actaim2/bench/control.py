@@ -11,7 +11,7 @@ Per robot preset:
     10-20 cm, as MANIPULATE does; IK sampled along the line, timed by Ruckig, then the
     largest tcp distance from the line over the *sampled trajectory* sent to the controller
     (p50 and max over lines), and the planning time of a line.
-Targets (issue 5): IK success >= 99.5% with p50 <= 1 ms; Ruckig p50 <= 50 us; deviation
+Targets: IK success >= 99.5% with p50 <= 1 ms; Ruckig p50 <= 50 us; deviation
 <= 2 mm. Other jobs on the machine inflate the timings: the load average is printed.
 """
 from __future__ import annotations

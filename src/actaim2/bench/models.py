@@ -4,7 +4,7 @@
 ``batch``, ``params``, ``p50_ms``, ``p99_ms``, ``cpu_p50_ms``, ``samples_per_s``, ``n``,
 ``target``, ``met``, ``load``); :func:`markdown_table` prints any such rows, the selector's too.
 
-Measurements (issue 11, targets on 2 cores):
+Measurements (targets on 2 cores):
   * forward + decode, batch 1: eval mode, views -> heatmaps, rotation and gripper logits -> the
     keypose, the coarse-to-fine 3-D decode included (p50 <= 20 ms); the same with mode guidance
     (:mod:`actaim2.models.mode_guidance`: a second row fed the mean mode, in the same batch);
@@ -106,7 +106,12 @@ def bench_predictor(
     from actaim2.data.encoder import AE_LATENT, AUTOENCODER_SPEC
     from actaim2.models.augment import augment
     from actaim2.models.mode_guidance import guide, with_reference
-    from actaim2.models.predictor import ActionPredictor, PredictorConfig, decode_action, proprio_features
+    from actaim2.models.predictor import (
+        ActionPredictor,
+        PredictorConfig,
+        decode_action,
+        proprio_features,
+    )
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.perception.fusion import FusionConfig
     from actaim2.train.action_loss import action_loss, action_targets

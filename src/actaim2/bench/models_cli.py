@@ -1,6 +1,6 @@
 """`actaim2 bench models`: parameters, latency and training step of the selectors and the action predictor.
 
-Targets (issue 11, 2 CPU cores): selector sample p50 <= 5 ms; predictor forward with the 3-D
+Targets (2 CPU cores): selector sample p50 <= 5 ms; predictor forward with the 3-D
 decode p50 <= 20 ms; predictor training step at batch 8 <= 300 ms. Other jobs on the machine
 stretch wall times: each row also gives this process's CPU time and the load average.
 """

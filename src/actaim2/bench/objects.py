@@ -20,6 +20,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from actaim2.bench.physics import waving_arm
+
 TARGET_PREPARE_S = 300.0
 TARGET_PHYSICS_RTF = 10.0
 PUSH_MOVED = 0.1  # fraction of a DoF's range a scripted push must move it by
@@ -67,10 +69,8 @@ def _run(folders: list[Path], workers: int, seconds: float, cache_root: Path) ->
 
 def _arm_moving_rtf(env, seconds: float) -> float:
     """Real-time factor of physics while the arm follows a trajectory from home."""
-    from actaim2.bench.sim import _waving_arm
-
     env.robot.reset(env.spec.home, env.spec.gripper_open)
-    controller = _waving_arm(env, seconds)
+    controller = waving_arm(env, seconds)
     end, wall = env.time + seconds, time.perf_counter()
     while env.time < end:
         q, qd = controller.command(env.time + env.timestep)

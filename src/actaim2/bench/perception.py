@@ -190,9 +190,8 @@ def in_process(
     one torch thread, CPU time approximates an idle machine. Second: where today's wall time
     goes, ms per set for each section the path marks (``actaim2.profiling``) and "rest".
     """
-    from actaim2.profiling import Profile, recording
-
     from actaim2.perception import cloud_codec, fusion, pipeline, self_filter
+    from actaim2.profiling import Profile, recording
     from actaim2.robots import load_robot_spec
 
     def path_of(codec, fusion_module, pipeline_module, filter_module, render=None):
@@ -239,7 +238,7 @@ def in_process(
             )
         except ValueError as exc:
             print(f"renderer before splatting not timed: {exc}")
-    # Payloads as rclpy delivers a PointCloud2's data: a (writable) array.array of bytes.
+    # Payloads as a ROS subscription delivers a PointCloud2's data: a (writable) array.array of bytes.
     payloads = [
         (replace(wire, data=array.array("B", wire.data)), c.T_world_optical)
         for wire, c in ((cloud_codec.encode(c.xyz, c.rgb), c) for c in scene.cameras)
@@ -351,7 +350,6 @@ def main(args: argparse.Namespace) -> int:
     import torch
 
     from actaim2.perception.config import load_perception_config
-
     from actaim2.perception.memory import keep_freed_memory
 
     torch.set_num_threads(args.threads)

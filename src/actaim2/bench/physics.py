@@ -17,8 +17,8 @@ import numpy as np
 
 def run_physics_bench(robot: str = "panda", seconds: float = 5.0, timestep: float = 1.0 / 240.0) -> list[dict]:
     """One dict per workload: name, simulated seconds, wall seconds, steps/s, real-time factor."""
-    from actaim2.sim.env import SimEnv
     from actaim2.rollout.expert import ExpertTask, ScriptedExpert
+    from actaim2.sim.env import SimEnv
 
     env = SimEnv(robot, timestep=timestep)
     env.reset("storage_furniture", 2, seed=2)
@@ -65,3 +65,16 @@ def markdown(rows: list[dict]) -> str:
         lines.append(f"| {r['workload']} | {r['sim_s']:.1f} | {r['wall_s']:.2f} | {r['steps_per_s']:.0f} | {r['real_time_factor']:.1f}x |")
     return "\n".join(lines)
 
+
+def waving_arm(env, seconds: float):
+    """An ArmController following a slow sinusoid around home for ``seconds``."""
+    from actaim2.sim.joint_trajectory import ArmController, TrajectoryCommand
+
+    joints = tuple(env.spec.arm_joints)
+    times = np.arange(0.25, seconds + 0.25, 0.25)
+    amplitude = np.array([0.4, 0.2, 0.3, 0.3, 0.4, 0.3, 0.5])[: len(joints)]
+    positions = env.spec.home + np.sin(2 * np.pi * times[:, None] / 4.0) * amplitude
+    controller = ArmController(joints, env.robot.arm_positions(), goal_tolerance=0.0, goal_time_tolerance=0.0)
+    q, qd = env.robot.arm_positions(), np.zeros(len(joints))
+    controller.start(TrajectoryCommand(joints, times, positions, None, None, None), env.time, q, qd)
+    return controller

@@ -56,9 +56,3 @@ def stop_group(process: subprocess.Popen, timeout: float = 30.0) -> int:
             os.killpg(process.pid, signal.SIGKILL)
             process.wait()
     return process.returncode
-
-
-def cpu_seconds(pid: int) -> float:
-    """CPU seconds a process has used so far, all threads (user + system, from /proc): load-independent."""
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime + stime

@@ -80,11 +80,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def untrained_checkpoint(stem: Path, perception) -> Path:
     """A checkpoint with the CPU default training sizes and random weights (timing only)."""
+    from actaim2.artifact import checkpoint
     from actaim2.models.predictor import ActionPredictor, PredictorConfig
     from actaim2.models.registry import build_selector
     from actaim2.models.selector_base import SelectorConfig
     from actaim2.perception.ortho_views import VIEWS
-    from actaim2.train import checkpoint
     from actaim2.train.config import load_config
 
     train = load_config("cpu_default")
@@ -295,14 +295,17 @@ def in_process(
 
     import torch
 
+    from actaim2.artifact.serving import DEFAULT_SERVING
     from actaim2.bench.baseline import modules_at
-    from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, PolicyModel
+    from actaim2.policy.inference import PolicyModel
     from actaim2.policy.views import Views
 
     torch.set_num_threads(1)
     models = {"": PolicyModel.load(stem, perception, "cpu")}
     if baseline:
-        old = modules_at(baseline, ["actaim2.models.predictor", "actaim2.policy.inference"])
+        # The baseline's serving loaded checkpoints through its own train.checkpoint (today's
+        # is artifact.checkpoint): it loads from the revision too.
+        old = modules_at(baseline, ["actaim2.train.checkpoint", "actaim2.models.predictor", "actaim2.policy.inference"])
         model = old["actaim2.policy.inference"].PolicyModel.load(stem, perception, "cpu")
         if (
             model.predictor is not None
@@ -325,7 +328,7 @@ def in_process(
     requests = {
         "sample_mode": lambda m, k: m.sample_mode(views, k % max(m.clusters, 1), k),
         "predict_keypose": lambda m, k: m.predict_keypose(
-            views, eps, k % 4, k % 4 == 3, KEYPOSE_ALTERNATIVES
+            views, eps, k % 4, k % 4 == 3, DEFAULT_SERVING.keypose_alternatives
         ),
     }
     times = {f"{name}{suffix}": ([], []) for name in requests for suffix in models}

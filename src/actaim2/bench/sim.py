@@ -8,7 +8,7 @@ Measured on the default scene (Panda + storage_furniture instance 0, 240 Hz phys
     without the robot, and the PointCloud2 encoding of the five clouds;
   * real-time factor of the whole loop - trajectory execution plus ring5 rendered at 5 Hz of
     sim time - running as fast as possible.
-Targets (issue 3): physics >= 10x real time while executing trajectories; a ring5 observation
+Targets: physics >= 10x real time while executing trajectories; a ring5 observation
 <= 200 ms. Timings are medians; other jobs on the machine inflate them (load average printed).
 """
 from __future__ import annotations
@@ -19,6 +19,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from actaim2.bench.physics import waving_arm
 
 TARGET_PHYSICS_RTF = 10.0
 TARGET_RING5_MS = 200.0
@@ -36,24 +38,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cache", type=Path, help="with --objects: hull cache to prepare into (default: a new empty one: cold)")
 
 
-def _waving_arm(env, seconds: float):
-    """An ArmController following a slow sinusoid around home for ``seconds``."""
-    from actaim2.sim.joint_trajectory import ArmController, TrajectoryCommand
-
-    joints = tuple(env.spec.arm_joints)
-    times = np.arange(0.25, seconds + 0.25, 0.25)
-    amplitude = np.array([0.4, 0.2, 0.3, 0.3, 0.4, 0.3, 0.5])[: len(joints)]
-    positions = env.spec.home + np.sin(2 * np.pi * times[:, None] / 4.0) * amplitude
-    controller = ArmController(joints, env.robot.arm_positions(), goal_tolerance=0.0, goal_time_tolerance=0.0)
-    q, qd = env.robot.arm_positions(), np.zeros(len(joints))
-    controller.start(TrajectoryCommand(joints, times, positions, None, None, None), env.time, q, qd)
-    return controller
-
-
 def _run_loop(env, seconds: float, camera_rate: float) -> tuple[int, float]:
     """(physics steps, wall seconds) of the node's loop: sample, set targets, step, and render
     ring5 every 1/camera_rate sim seconds when ``camera_rate`` > 0."""
-    controller = _waving_arm(env, seconds)
+    controller = waving_arm(env, seconds)
     end, steps = env.time + seconds, 0
     next_frame = env.time
     started = time.perf_counter()

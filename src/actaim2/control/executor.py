@@ -15,8 +15,8 @@ from scipy.spatial.transform import Rotation
 
 from actaim2.control.planner import KeyposePlanner, Motion, PlanningError
 from actaim2.control.trajectory import JointTrajectory, State
-from actaim2.keypose import GRASP, INIT, MANIPULATE, PHASE_NAMES, REACH, Keypose
 from actaim2.geometry import pose_to_matrix
+from actaim2.keypose import GRASP, INIT, MANIPULATE, PHASE_NAMES, REACH, Keypose
 
 Feedback = Callable[[int, float], None]  # (phase, progress 0..1)
 

@@ -32,10 +32,17 @@ from actaim2.control.collision import CollisionChecker, points_away_from
 from actaim2.control.ik import IKSolver
 from actaim2.control.line import LineError, LineSegment, solve_line
 from actaim2.control.model import RobotModel
-from actaim2.keypose import GRASP, INIT, MANIPULATE, PHASE_NAMES, REACH
+from actaim2.control.trajectory import (
+    JointPlanner,
+    JointTrajectory,
+    Limits,
+    Segment,
+    State,
+    TrajectoryError,
+    sample,
+)
+from actaim2.keypose import GRASP, INIT, MANIPULATE, PHASE_NAMES, REACH, check_phase
 from actaim2.profiling import timed
-from actaim2.control.trajectory import JointPlanner, JointTrajectory, Limits, Segment, State, TrajectoryError, sample
-
 
 
 @dataclass(frozen=True)
@@ -50,10 +57,9 @@ class PlannerOptions:
     hand_half_turn: bool = False  # plan T or T Rz(180), whichever is accepted (order: module docstring)
 
 
-# How a learned policy's keyposes are planned (the evaluation, control_node): with the half turn. On the
-# committed checkpoint it raised the SSR on seen objects (McNemar p 0.009) and unseen instances (p 3e-6),
-# docs/evaluation.md. The dataclass default stays off: data collection plans and labels exactly the pose
-# its sampler drew.
+# How a learned policy's keyposes are planned (the evaluation, control_node): with the half turn (a
+# two-finger grasp T and T Rz(180) are the same grasp; why it is on: docs/decisions.md). The
+# dataclass default stays off: data collection plans and labels exactly the pose its sampler drew.
 POLICY_PLANNER = PlannerOptions(hand_half_turn=True)
 
 
@@ -97,8 +103,10 @@ class KeyposePlanner:
     def plan(self, phase: int, T_goal: np.ndarray, gripper_closed: bool, start: State, velocity_scaling: float = 1.0,
              rng: np.random.Generator | None = None) -> Motion:
         """The motion executing keypose (phase, T_goal, gripper_closed) from the arm state ``start``."""
-        if phase not in (INIT, REACH, GRASP, MANIPULATE):
-            raise PlanningError("invalid", f"unknown phase {phase}: expected 0..3 (INIT, REACH, GRASP, MANIPULATE)")
+        try:
+            phase = check_phase(phase)
+        except ValueError as exc:
+            raise PlanningError("invalid", str(exc)) from None
         T_goal = np.asarray(T_goal, dtype=float)
         if phase == GRASP:
             return Motion(phase, T_goal, gripper_closed, None)

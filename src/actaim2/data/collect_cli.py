@@ -128,8 +128,13 @@ def _splits(args: argparse.Namespace) -> tuple[str, ...]:
 def _folders(args: argparse.Namespace) -> list[FolderObject]:
     """Real object folders: ``--objects`` (split by ``--object-splits``, or under partnet by its
     splits file), else the partnet catalogue's ``--splits``."""
-    from actaim2.data.real_objects import (catalogue_folders, folder_objects, partnet_root,
-                                           partnet_splits, read_object_splits)
+    from actaim2.data.real_objects import (
+        catalogue_folders,
+        folder_objects,
+        partnet_root,
+        partnet_splits,
+        read_object_splits,
+    )
 
     partnet = args.catalogue == "partnet"
     if args.objects is not None:

@@ -25,7 +25,13 @@ import torch.nn.functional as F
 from torch import nn
 
 from actaim2.data.trajectory import CameraImage, Observation
-from actaim2.data.vgg import IMAGENET_MEAN, IMAGENET_STD, VGG19_OUT_CHANNELS, load_vgg19_features, vgg19_features
+from actaim2.data.vgg import (
+    IMAGENET_MEAN,
+    IMAGENET_STD,
+    VGG19_OUT_CHANNELS,
+    load_vgg19_features,
+    vgg19_features,
+)
 
 
 @dataclass(frozen=True)

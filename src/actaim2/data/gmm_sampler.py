@@ -20,8 +20,8 @@ from sklearn.mixture import GaussianMixture
 
 from actaim2.data.actions import ActionSequence
 from actaim2.data.object_cloud import ObjectCloud
-from actaim2.profiling import timed
 from actaim2.data.random_sampler import SamplingConfig, approach_is_free
+from actaim2.profiling import timed
 
 
 @dataclass(frozen=True)

@@ -12,8 +12,8 @@ import numpy as np
 from actaim2.data.actions import ActionSequence
 from actaim2.data.grasp import AntipodalConfig, AntipodalGraspProposer, GraspProposer
 from actaim2.data.object_cloud import CloudConfig, ObjectCloud, part_segments
-from actaim2.profiling import timed
 from actaim2.data.random_sampler import SamplingConfig, approach_is_free, complete_action
+from actaim2.profiling import timed
 
 
 class HeuristicGraspSampler:

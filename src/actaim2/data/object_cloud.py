@@ -14,8 +14,8 @@ import numpy as np
 
 from actaim2.data.trajectory import CameraImage, Observation
 from actaim2.geometry import depth_to_points
-from actaim2.profiling import timed
 from actaim2.perception.fusion import CameraCloud, FusionConfig, fuse
+from actaim2.profiling import timed
 
 
 @dataclass(frozen=True)

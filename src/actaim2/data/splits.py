@@ -10,7 +10,7 @@ trajectory's split says which catalogue's rule put it there:
 * ``partnet``: real PartNet-Mobility folders, split by the ``splits.yaml`` of the folder that
   holds them (``actaim2.data.real_objects``): ``train``, ``val`` (every choice of recipe and
   checkpoint), ``test_unseen_instance`` and ``test_unseen_category`` (run once a recipe is
-  frozen, under the evaluation protocol: ``actaim2.eval.protocol``) and ``extra`` (other
+  frozen, under the evaluation protocol: ``actaim2.protocol.lock``) and ``extra`` (other
   categories, optional training data).
 
 Every trajectory carries its object's split, so no instance is ever on two sides;
@@ -44,7 +44,7 @@ class Catalogue:
     training: tuple[str, ...]  # the models train on these when a dataset holds them
     calibration: str  # trains the encoder, calibrates the success label; "seen objects"
     validation: tuple[str, ...]  # every choice (recipe, epochs, checkpoint) is made on these
-    test: tuple[str, ...]  # run only under a protocol lock (actaim2.eval.protocol)
+    test: tuple[str, ...]  # run only under a protocol lock (actaim2.protocol.lock)
     default_collect: tuple[str, ...]  # what `actaim2 collect` collects on by default
     default_evaluate: tuple[str, ...]  # what `actaim2 evaluate` and `validate` measure by default
 

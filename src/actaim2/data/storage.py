@@ -28,6 +28,7 @@ last indexed trajectory, so an interrupted collection resumes with no partial re
 """
 from __future__ import annotations
 
+import hashlib
 import io
 import json
 import os
@@ -359,3 +360,18 @@ class DatasetReader:
         raw = self.members(entry)
         meta = json.loads(raw[f"{entry['id']}.meta.json"])
         return meta, {o: {c: _camera_image(raw, meta, o, c) for c in meta["cameras"]} for o in names}
+
+
+# The files that decide what training sees: info, index, labels, embeddings.
+_DIGESTED = ("dataset.json", INDEX_FILE, "labels.jsonl", "embeddings.npz")
+
+
+def dataset_digest(root: str | Path) -> str:
+    """SHA-256 (16 hex) of the dataset files that decide what training sees (absent ones count by name)."""
+    h = hashlib.sha256()
+    for name in _DIGESTED:
+        p = Path(root) / name
+        h.update(name.encode())
+        if p.exists():
+            h.update(p.read_bytes())
+    return h.hexdigest()[:16]

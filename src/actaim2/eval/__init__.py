@@ -10,8 +10,6 @@
   outcome       success and (DoF, direction) of an executed sample
   worker        a process's simulator, planner and sources
   results       resumable JSONL of records, run identity
-  stats         Wilson intervals
-  mode_ssr      Mode SSR with the split-half cluster choice
   tables        the markdown tables (paper Table 1, Table 2, appendix, acceptance checks)
   checkpoints   a checkpoint's perception configuration and digests
   evaluate_cli  the command

@@ -4,8 +4,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from actaim2.artifact import checkpoint
 from actaim2.perception.config import PerceptionConfig
-from actaim2.train import checkpoint
 
 
 def describe(stem: str | Path) -> dict:

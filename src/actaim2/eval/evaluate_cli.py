@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING
 
 from actaim2.data.collect_cli import add_catalogue_arguments
 from actaim2.eval.presets import DATA_COLLECTION_EXPLORATION
-from actaim2.eval.protocol_cli import add_protocol_arguments, splits_files
+from actaim2.protocol.arguments import add_protocol_arguments, splits_files
 
 if TYPE_CHECKING:
     from actaim2.eval.presets import Preset
@@ -134,8 +134,8 @@ def _render_path(perception, args: argparse.Namespace) -> str:
 
 def _methods(args: argparse.Namespace) -> tuple[dict[str, Path], list[str]]:
     """(method -> checkpoint stem, the methods to run), with the reason for every row left out."""
+    from actaim2.artifact.checkpoint import paths
     from actaim2.eval.methods import METHODS
-    from actaim2.train.checkpoint import paths
 
     checkpoints = {"actaim2": args.checkpoint, "goal_rvt": args.goal_rvt, "vqvae_rvt": args.vqvae, "actaim_cvae": args.cvae,
                    "actaim2_depth": args.ablation_depth, "actaim2_single_view": args.ablation_single_view}
@@ -161,8 +161,8 @@ def _methods(args: argparse.Namespace) -> tuple[dict[str, Path], list[str]]:
 
 def _encoder(args: argparse.Namespace, goal_rvt: Path) -> Path | None:
     """Goal-RVT's encoder E: --encoder, else the one beside its checkpoint, else the dataset's."""
+    from actaim2.artifact.checkpoint import encoder_path
     from actaim2.data.labelling import dataset_encoder
-    from actaim2.train.checkpoint import encoder_path
 
     if args.encoder is not None:
         return args.encoder
@@ -172,6 +172,7 @@ def _encoder(args: argparse.Namespace, goal_rvt: Path) -> Path | None:
 
 
 def main(args: argparse.Namespace) -> int:
+    from actaim2.artifact.serving import DEFAULT_SERVING, check_noise_scale
     from actaim2.control.planner import POLICY_PLANNER
     from actaim2.data.real_objects import partnet_root
     from actaim2.data.splits import GENERATED, catalogue
@@ -188,8 +189,6 @@ def main(args: argparse.Namespace) -> int:
         partnet_objects,
     )
     from actaim2.eval.methods import ABLATIONS, PSEUDO_GROUPING, ablation_problem
-    from actaim2.eval.protocol import append_ledger, guarded_ids, protected, read_ledger
-    from actaim2.eval.protocol import check_run as check_protocol
     from actaim2.eval.reproduce import REPRODUCTION_FILE, agreement, choose, reference_records
     from actaim2.eval.results import ResultLog, RunMismatchError, check_run
     from actaim2.eval.tables import report
@@ -197,17 +196,13 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.eval.worker import EvalWorker, WorkerSetup
     from actaim2.parallel import ray_available
     from actaim2.perception.config import load_perception_config
-    from actaim2.policy.inference import (
-        KEYPOSE_ALTERNATIVES,
-        MODE_GUIDANCE,
-        NOISE_SCALE,
-        check_noise_scale,
-    )
+    from actaim2.protocol.lock import append_ledger, guarded_ids, protected, read_ledger
+    from actaim2.protocol.lock import check_run as check_protocol
 
     half_turn = POLICY_PLANNER.hand_half_turn if args.hand_half_turn is None else args.hand_half_turn
-    alternatives = KEYPOSE_ALTERNATIVES if args.keypose_alternatives is None else args.keypose_alternatives
-    guidance = MODE_GUIDANCE if args.mode_guidance is None else args.mode_guidance
-    noise_scale = NOISE_SCALE if args.noise_scale is None else args.noise_scale
+    alternatives = DEFAULT_SERVING.keypose_alternatives if args.keypose_alternatives is None else args.keypose_alternatives
+    guidance = DEFAULT_SERVING.mode_guidance if args.mode_guidance is None else args.mode_guidance
+    noise_scale = DEFAULT_SERVING.noise_scale if args.noise_scale is None else args.noise_scale
     try:
         preset = _preset(args)
         ray_problem = ray_available() if args.ray else None
@@ -385,7 +380,7 @@ def _grounding(args: argparse.Namespace, setup, methods: list[str]) -> int:
 
 
 def _data_digest(data: Path | None) -> str:
-    from actaim2.train.data import dataset_digest
+    from actaim2.data.storage import dataset_digest
 
     return dataset_digest(data) if data is not None else "-"
 

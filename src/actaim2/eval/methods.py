@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 PSEUDO_CLUSTERS = 8  # the paper's K
 # How samples fall into pseudo-clusters (``sources.pseudo_group``), recorded in run.json: results
-# grouped another way (before 2026-12-03: "slot mod 8") must not be mixed with these.
+# grouped another way ("slot mod 8") must not be mixed with these.
 PSEUDO_GROUPING = "shuffled per repetition"
 
 

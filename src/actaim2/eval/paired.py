@@ -23,9 +23,10 @@ from collections import defaultdict
 from dataclasses import dataclass
 from typing import Mapping, Sequence
 
-from actaim2.eval.stats import PairedCounts, Rate
 from actaim2.eval.tables import AVG
 from actaim2.keypose import PHASE_NAMES
+from actaim2.metrics.mode_ssr import GroupSample, halving_rule
+from actaim2.metrics.stats import PairedCounts, Rate, paired_bootstrap
 
 # A record's fields that must agree for two records of one key to be the same sample.
 SAME_SAMPLE = ("object", "split", "reset_seed", "sample_seed", "requested_cluster")
@@ -144,3 +145,77 @@ def scene_pairs(runs: Sequence[Sequence[dict]], method_a: str,
             entry[3] += int(bool(rb["success"]))
     return [PairedCounts(category, scenes, sa, sb)
             for _, (category, scenes, sa, sb) in sorted(totals.items())]
+
+
+def component_groups(records: Sequence[dict], method: str) -> list[dict]:
+    """``records`` with ``method``'s samples regrouped by the GMM cluster each slot drew from
+    (``gmm_clusters`` K recorded on an object's samples: slot s draws from cluster s mod K,
+    repetition s // K) instead of by pseudo-cluster; other records are returned as they are. An
+    object with no recorded K (no sampler, every sample refused) is one group."""
+    clusters = {r["object"]: r["gmm_clusters"] for r in records if r["method"] == method and "gmm_clusters" in r}
+    if not clusters:
+        return list(records)
+    out = []
+    for r in records:
+        if r["method"] == method:
+            k = clusters.get(r["object"], 1)
+            r = {**r, "group": r["slot"] % k, "repetition": r["slot"] // k}
+        out.append(r)
+    return out
+
+
+def _group_samples(runs: Sequence[Sequence[dict]], methods: Sequence[str]) -> dict:
+    """method -> object -> per run, its samples as Mode SSR reads them (group, repetition, mode)."""
+    samples: dict[str, dict[str, list[list[GroupSample]]]] = {m: {} for m in methods}
+    for records in runs:
+        per_run: dict[tuple[str, str], list[GroupSample]] = {}
+        for r in records:
+            if r["method"] in samples and r.get("group", -1) >= 0:
+                mode = tuple(r["mode"]) if r["mode"] else None
+                per_run.setdefault((r["method"], r["object"]), []).append(
+                    GroupSample(r["group"], r["repetition"], mode))
+        for (name, obj), group_samples in per_run.items():
+            samples[name].setdefault(obj, []).append(group_samples)
+    return samples
+
+
+def comparison(runs: Sequence[Sequence[dict]], method: str, baseline: str, halvings: int,
+               rounds: int, seed: int = 0) -> list[str]:
+    """Markdown: ``method`` against ``baseline`` by the protocol's two rules, per split, over the
+    records of each seed's run (seeds pooled), with each seed's SSRs listed."""
+    splits = sorted({r["split"] for records in runs for r in records if r["method"] == method}
+                    & {r["split"] for records in runs for r in records if r["method"] == baseline})
+    if not splits:
+        raise ValueError(f"no split has records of both {method} and {baseline}")
+    lines = [f"# {method} against {baseline}: the protocol's rules, {len(runs)} seed(s) pooled",
+             ""]
+    components = [component_groups(records, baseline) for records in runs]
+    by_component = any(r is not c for records, grouped in zip(runs, components) for r, c in zip(records, grouped))
+    for split in splits:
+        mine = [[r for r in records if r["split"] == split] for records in runs]
+        ssr = paired_bootstrap(scene_pairs(mine, method, baseline), rounds, seed)
+        categories = {r["object"]: r["category"] for records in mine for r in records}
+        samples = _group_samples(mine, (method, baseline))
+        second = halving_rule(samples[method], samples[baseline], categories, 2, halvings, rounds,
+                              seed)
+        rows = [("2nd-mode SSR", second)]
+        if by_component:  # the baseline's modes by its own GMM components too
+            own = _group_samples([[r for r in records if r["split"] == split] for records in components],
+                                 (baseline,))
+            rows.append((f"2nd-mode SSR, {baseline} by its GMM components",
+                         halving_rule(samples[method], own[baseline], categories, 2, halvings, rounds, seed)))
+        lines += [f"## {split}", "",
+                  "| rule | pooled [95 %] | category macro-average [95 %] | holds |",
+                  "|---|---|---|---|",
+                  f"| SSR, paired scenes | {ssr.pooled.cell()} | {ssr.macro.cell()} | "
+                  f"{'yes' if ssr.above_zero else 'no'} |",
+                  *(f"| {name}, {halvings} halvings (positive in {100 * rule.positive_share:.0f} %) "
+                    f"| {rule.difference.pooled.cell()} | {rule.difference.macro.cell()} "
+                    f"| {'yes' if rule.holds else 'no'} |" for name, rule in rows), "",
+                  "| seed | " + f"{method} SSR % | {baseline} SSR % |", "|---|---|---|"]
+        for k, records in enumerate(mine):
+            rates = [Rate(sum(bool(r["success"]) for r in records if r["method"] == m),
+                          sum(r["method"] == m for r in records)) for m in (method, baseline)]
+            lines.append(f"| {k} | {rates[0].cell()} | {rates[1].cell()} |")
+        lines.append("")
+    return lines

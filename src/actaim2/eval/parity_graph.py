@@ -14,7 +14,7 @@ these overrides so that it executes what the library evaluation executes:
 
 Each tuple is one ``ros2 run actaim2_policy episode_runner`` process (episodes 1, the tuple's
 object, seed and cluster, the library's velocity scaling and initial DoF fraction); its JSONL
-record is the ROS outcome. Nothing here imports rclpy: the graph is processes and files.
+record is the ROS outcome. Nothing here imports ROS: the graph is processes and files.
 """
 from __future__ import annotations
 

@@ -7,7 +7,7 @@ Examples:
     actaim2 protocol ledger                              # the --final runs so far
     actaim2 protocol compare runs/test-s0 runs/test-s1 runs/test-s2   # both rules, seeds pooled
 
-The lock's format and the rules it enforces: actaim2.eval.protocol and docs/evaluation.md
+The lock's format and the rules it enforces: actaim2.protocol.lock and docs/evaluation.md
 ("Protocol").
 """
 
@@ -17,10 +17,9 @@ import argparse
 import sys
 from collections import Counter
 from pathlib import Path
-from typing import Sequence
 
 from actaim2.data.collect_cli import add_catalogue_arguments
-from actaim2.eval.protocol import LEDGER_FILE, LOCK_FILE
+from actaim2.protocol.lock import LEDGER_FILE, LOCK_FILE
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -77,47 +76,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def add_protocol_arguments(parser: argparse.ArgumentParser) -> None:
-    """``--final``, ``--lock``, ``--ledger``: shared by evaluate and validate
-    (actaim2.eval.protocol)."""
-    parser.add_argument(
-        "--final",
-        action="store_true",
-        help="run test-split objects, once, under the protocol lock (docs/evaluation.md, "
-        "Protocol); the run is appended to the ledger",
-    )
-    parser.add_argument(
-        "--lock", type=Path, default=LOCK_FILE, help=f"the protocol lock (default {LOCK_FILE})"
-    )
-    parser.add_argument(
-        "--ledger",
-        type=Path,
-        default=LEDGER_FILE,
-        help=f"the --final runs' ledger (default {LEDGER_FILE})",
-    )
-
-
-def splits_files(args: argparse.Namespace, folders: Sequence[Path] = ()) -> list[Path]:
-    """The splits files that say which real folders are test objects: the partnet catalogue's
-    (where it is known) and the one in or beside each of ``folders`` (object folders, or
-    folders of them)."""
-    import os
-
-    from actaim2.data.real_objects import PARTNET_ROOT_ENV, SPLITS_FILE
-
-    root = args.partnet_root or os.environ.get(PARTNET_ROOT_ENV)
-    files = [Path(root) / SPLITS_FILE] if root else []
-    for folder in folders:
-        files += [Path(folder) / SPLITS_FILE, Path(folder).parent / SPLITS_FILE]
-    return list(dict.fromkeys(files))
-
-
 def main(args: argparse.Namespace) -> int:
     return {"lock": _lock, "compare": _compare, "ledger": _ledger}[args.action](args)
 
 
 def _compare(args: argparse.Namespace) -> int:
-    from actaim2.eval.protocol import comparison
+    from actaim2.eval.paired import comparison
     from actaim2.eval.results import RESULTS_FILE, ResultLog
 
     try:
@@ -149,7 +113,7 @@ def _lock(args: argparse.Namespace) -> int:
     from actaim2.data.splits import PARTNET
     from actaim2.eval.checkpoints import describe
     from actaim2.eval.evalset import EVAL_SET_VERSION
-    from actaim2.eval.protocol import ProtocolLock, file_sha256, success_rule
+    from actaim2.protocol.lock import ProtocolLock, file_sha256, success_rule
 
     try:
         if args.catalogue != PARTNET.name:
@@ -188,7 +152,7 @@ def _lock(args: argparse.Namespace) -> int:
 
 
 def _ledger(args: argparse.Namespace) -> int:
-    from actaim2.eval.protocol import read_ledger
+    from actaim2.protocol.lock import read_ledger
 
     try:
         runs = read_ledger(args.ledger)

@@ -17,10 +17,9 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from actaim2.eval.results import RESULTS_FILE
+from actaim2.eval.results import RECORD_SAMPLES_FILE, RESULTS_FILE
 
 REPRODUCTION_FILE = "reproduction.json"
-RECORD_SAMPLES_FILE = "results.jsonl.gz"  # a committed record's samples (actaim2.report.records)
 
 
 def reference_records(folder: Path) -> dict[str, dict]:

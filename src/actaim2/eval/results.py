@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 RESULTS_FILE = "results.jsonl"
+RECORD_SAMPLES_FILE = "results.jsonl.gz"  # a committed record's samples (actaim2.report.records)
 RUN_FILE = "run.json"
 
 

@@ -19,6 +19,7 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
+from actaim2.artifact.serving import DEFAULT_SERVING
 from actaim2.control.ik import IKSolver
 from actaim2.data.actions import Sampler
 from actaim2.data.collect import ik_reachable
@@ -30,7 +31,7 @@ from actaim2.eval.methods import PSEUDO_CLUSTERS
 from actaim2.eval.sim_views import ViewMaker, pictures
 from actaim2.eval.tasks import EvalTask
 from actaim2.keypose import Keypose
-from actaim2.policy.inference import NOISE_SCALE, ROLES, ModeSample, PolicyModel
+from actaim2.policy.inference import ROLES, ModeSample, PolicyModel
 from actaim2.policy.views import Views
 from actaim2.robots import RobotSpec
 from actaim2.sim.env import ResetInfo, SimEnv
@@ -77,8 +78,7 @@ def pseudo_group(key: str, slot: int) -> tuple[int, int]:
     Each repetition (8 consecutive slots) gives every pseudo-cluster one slot, in an order drawn
     per object and repetition. Not ``slot mod 8``: Data Collection's GMM sampler visits its
     clusters round robin by slot, so with 2, 4 or 8 clusters ``slot mod 8`` would name the cluster
-    and the yardstick would not be a random partition (on seen objects the permutation test of
-    group against outcome gave p 0.026 with ``slot mod 8``, 0.46-0.96 with random partitions).
+    and the yardstick would not be a random partition (docs/decisions.md).
     """
     repetition, position = divmod(slot, PSEUDO_CLUSTERS)
     order = np.random.default_rng(pseudo_order_seed(key, repetition)).permutation(PSEUDO_CLUSTERS)
@@ -99,7 +99,7 @@ class ServedPolicy:
     (``PolicyModel.sample_mode``'s)."""
 
     def __init__(self, model: PolicyModel, spec: RobotSpec, alternatives: int = 0, guidance: float = 0.0,
-                 noise_scale: float = NOISE_SCALE):
+                 noise_scale: float = DEFAULT_SERVING.noise_scale):
         self.model, self.alternatives, self.guidance, self.noise_scale = model, alternatives, guidance, noise_scale
         makers: dict[str, ViewMaker] = {}
         self.makers = {}

@@ -1,4 +1,4 @@
-"""The three-drawer stand-in of the paper's real-robot result (issue 15 item 4), in the simulator.
+"""The three-drawer stand-in of the paper's real-robot result, in the simulator.
 
 The demonstrations (``scripted_teleop`` through ``bag_recorder``, docs/finetuning.md) start from
 three initial states of the three-drawer shelf: the bottom, middle or top drawer half-open, the
@@ -29,9 +29,9 @@ from dataclasses import dataclass
 from typing import Sequence
 
 from actaim2.eval.evalset import EvalObject, reset_seed
-from actaim2.eval.stats import Rate
 from actaim2.eval.tasks import EvalTask
 from actaim2.eval.worker import EvalWorker
+from actaim2.metrics.stats import Rate
 from actaim2.rollout.teleop_eval import MODES, STATE_NAMES, initial_state
 
 SPLIT = "standin"

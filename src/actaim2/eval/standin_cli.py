@@ -1,4 +1,4 @@
-"""`actaim2 eval-standin`: the three-drawer stand-in, before and after fine-tuning (issue 15 item 4).
+"""`actaim2 eval-standin`: the three-drawer stand-in, before and after fine-tuning.
 
     actaim2 eval-standin --before runs/azure/policy --after runs/azure_ft/policy --out runs/standin
     actaim2 eval-standin --before runs/azure/policy --after runs/azure_ft/policy --out runs/standin-quick --quick
@@ -55,6 +55,7 @@ def _conditions(args: argparse.Namespace) -> dict[str, Path]:
 
 
 def main(args: argparse.Namespace) -> int:
+    from actaim2.artifact.checkpoint import paths
     from actaim2.eval.checkpoints import describe, perception_of
     from actaim2.eval.evalset import EVAL_SET_VERSION
     from actaim2.eval.evaluate_cli import _render_path
@@ -73,7 +74,6 @@ def main(args: argparse.Namespace) -> int:
     )
     from actaim2.eval.worker import WorkerSetup
     from actaim2.sim.randomisation import load_randomisation
-    from actaim2.train.checkpoint import paths
 
     placements = 1 if args.quick else args.placements
     overrides = {"push": args.push_cluster, "pull": args.pull_cluster}

@@ -2,7 +2,7 @@
 appendix table of 3rd and 4th modes, what the 2nd mode's group did on half B (the mode, the 1st
 mode, another, a failure, or no 2nd mode on the object), whether the groups select outcomes at all
 (a permutation test, ``mode_dependence.py``), the SSR of each cluster (whether some clusters draw eps the
-predictor cannot act on), the acceptance checks of issue 13, and where samples stopped
+predictor cannot act on), the acceptance checks, and where samples stopped
 (which phase the planner refused and why, and the SSR of the samples that ran all four phases:
 whether a row loses to infeasible keyposes or to keyposes that run and move nothing).
 
@@ -18,11 +18,11 @@ from typing import Iterable, Sequence
 
 from actaim2.eval.evalset import SPLIT_TITLES, SPLITS, TABLE_SPLITS
 from actaim2.eval.methods import METHODS, NOT_REPRODUCED, PSEUDO_CLUSTERS
-from actaim2.eval.mode_dependence import PERMUTATIONS, dependence_cells
-from actaim2.eval.mode_ssr import GroupSample, ModeResult, object_mode_ssr, pooled
 from actaim2.eval.outcome import NO_SAMPLE
-from actaim2.eval.stats import Rate
 from actaim2.keypose import PHASE_NAMES
+from actaim2.metrics.mode_dependence import PERMUTATIONS, dependence_cells
+from actaim2.metrics.mode_ssr import GroupSample, ModeResult, object_mode_ssr, pooled
+from actaim2.metrics.stats import Rate
 from actaim2.sim.objects.catalog import HELDOUT_CATEGORIES
 
 PAPER_ORDER = ("faucet", "table", "storage_furniture", "door", "switch", "refrigerator") + HELDOUT_CATEGORIES
@@ -237,7 +237,7 @@ def _above(a: Rate | None, b: Rate | None) -> str:
 
 
 def acceptance_table(records: Sequence[dict]) -> list[str]:
-    """Issue 13's acceptance: ActAIM2's intervals above Data Collection's (SSR; 2nd mode vs pseudo-clusters)."""
+    """The acceptance checks: ActAIM2's intervals above Data Collection's (SSR; 2nd mode vs pseudo-clusters)."""
     ssr, modes = ssr_cells(records), mode_cells(records, 2)
     lines = ["| check | ActAIM2 | Data Collection | interval above |", "|---|---|---|---|"]
     for split in (s for s in SPLITS[:2] if s in _splits(records)):

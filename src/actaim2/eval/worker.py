@@ -10,9 +10,9 @@ import dataclasses
 from dataclasses import dataclass, field
 from typing import Sequence
 
+from actaim2.artifact.serving import DEFAULT_SERVING
 from actaim2.control.planner import POLICY_PLANNER
 from actaim2.data.collect import PRECHECK_IK_RESTARTS, CollectConfig
-from actaim2.policy.inference import KEYPOSE_ALTERNATIVES, MODE_GUIDANCE, NOISE_SCALE
 
 _COLLECT_DEFAULTS = {f.name: f.default for f in dataclasses.fields(CollectConfig)}
 
@@ -33,9 +33,9 @@ class WorkerSetup:
     max_samples: int = _COLLECT_DEFAULTS["max_samples"]
     device: str = "cpu"
     hand_half_turn: bool = POLICY_PLANNER.hand_half_turn  # PlannerOptions.hand_half_turn for every row's keyposes
-    keypose_alternatives: int = KEYPOSE_ALTERNATIVES  # fallback rotations of each policy keypose (policy rows)
-    mode_guidance: float = MODE_GUIDANCE  # models/mode_guidance.py's weight for every policy keypose (policy rows)
-    noise_scale: float = NOISE_SCALE  # spread of every policy row's mode draw (PolicyModel.sample_mode)
+    keypose_alternatives: int = DEFAULT_SERVING.keypose_alternatives  # fallback rotations of each policy keypose (policy rows)
+    mode_guidance: float = DEFAULT_SERVING.mode_guidance  # models/mode_guidance.py's weight for every policy keypose (policy rows)
+    noise_scale: float = DEFAULT_SERVING.noise_scale  # spread of every policy row's mode draw (PolicyModel.sample_mode)
 
 
 class EvalWorker:

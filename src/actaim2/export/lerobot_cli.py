@@ -41,8 +41,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from actaim2.export.lerobot_v21 import export_lerobot, read_lerobot
     from actaim2.export.lerobot_v3 import export_lerobot_v3, read_lerobot_v3
+    from actaim2.export.lerobot_v21 import export_lerobot, read_lerobot
 
     if args.from_bags:
         from actaim2.finetune import bag2dataset_cli

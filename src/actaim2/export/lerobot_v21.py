@@ -37,8 +37,8 @@ import numpy as np
 from PIL import Image
 
 from actaim2.data.storage import DatasetReader, png_bytes
-from actaim2.data.trajectory import KEYFRAME_OBSERVATIONS
 from actaim2.data.torch_dataset import keypose_tensor
+from actaim2.data.trajectory import KEYFRAME_OBSERVATIONS
 from actaim2.keypose import Keypose
 
 CODEBASE_VERSION = "v2.1"

@@ -38,7 +38,13 @@ import numpy as np
 from actaim2.data.encoder import ImageEncoder
 from actaim2.data.labelling import EMBEDDINGS_FILE, encoder_digest
 from actaim2.data.splits import TRAIN
-from actaim2.data.storage import DatasetWriter, EncodedTrajectory, encode_trajectory, trajectory_id, write_labels
+from actaim2.data.storage import (
+    DatasetWriter,
+    EncodedTrajectory,
+    encode_trajectory,
+    trajectory_id,
+    write_labels,
+)
 from actaim2.data.trajectory import CameraImage, ObjectState, Observation, Trajectory
 from actaim2.finetune.bag_episodes import BagEpisode, BagProblem, Cloud, read_episodes
 from actaim2.finetune.intrinsics import IntrinsicsFit, IntrinsicsFitError, fit_intrinsics
@@ -68,7 +74,7 @@ def check_checkpoint_encoder(checkpoint_stem: str | Path, encoder_path: str | Pa
     """The checkpoint's selector learned task embeddings of one encoder E (``lineage.encoder_digest``,
     recorded by ``actaim2 train`` and ``actaim2 finetune``); demonstrations embedded by another E
     would ask it about a space it never saw. Raises naming both digests, or when none is recorded."""
-    from actaim2.train import checkpoint
+    from actaim2.artifact import checkpoint
 
     _, meta = checkpoint.read(checkpoint_stem)
     recorded = (meta.get("lineage") or {}).get("encoder_digest")

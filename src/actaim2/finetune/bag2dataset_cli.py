@@ -31,9 +31,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    from actaim2.artifact.checkpoint import CheckpointError, encoder_path
     from actaim2.finetune.bag2dataset import bags_to_dataset
     from actaim2.perception.config import load_perception_config
-    from actaim2.train.checkpoint import CheckpointError, encoder_path
 
     encoder = args.encoder
     if encoder is None and args.checkpoint is None:

@@ -51,6 +51,7 @@ from actaim2.keypose import PHASE_NAMES, Keypose
 from actaim2.perception.cloud_codec import CloudFormatError, Field, decode
 from actaim2.perception.joint_history import DEFAULT_MAX_EXTRAPOLATION, JointStateHistory
 from actaim2.perception.static_tf import StaticTransformBuffer
+from actaim2.stamps import header_stamp_ns
 
 BASE_TOPICS = ("/tf_static", "/joint_states", "/keypose", "/episode")
 MODE_TOPIC = "/interaction_mode"
@@ -114,10 +115,6 @@ class _Episode:
     end: tuple[bool, str, str] | None = None  # success, note, label
 
 
-def _stamp(header) -> int:
-    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
-
-
 def _keypose(msg) -> Keypose:
     p, q = msg.pose.position, msg.pose.orientation
     return Keypose(int(msg.phase), np.array([p.x, p.y, p.z], float), np.array([q.x, q.y, q.z, q.w], float), bool(msg.gripper_closed))
@@ -131,7 +128,7 @@ def decode_cloud(camera: str, msg) -> Cloud:
     decoded = decode(fields, bytes(msg.data), msg.height, msg.width, msg.point_step, msg.row_step, msg.is_bigendian)
     shape = (decoded.height, decoded.width, 3)
     rgb = None if decoded.rgb is None else decoded.rgb.reshape(shape)
-    return Cloud(camera, _stamp(msg.header), msg.header.frame_id, decoded.xyz.reshape(shape), rgb)
+    return Cloud(camera, header_stamp_ns(msg.header), msg.header.frame_id, decoded.xyz.reshape(shape), rgb)
 
 
 def choose_clouds(ep: _Episode, end_ns: int, cameras: dict[str, str]) -> dict[str, dict[str, CloudRef]]:
@@ -188,15 +185,15 @@ def _first_pass(path: Path, source: BagSource, topics: set[str], cameras: dict[s
                 r, p = t.transform.rotation, t.transform.translation
                 tf.set_transform(t.header.frame_id, t.child_frame_id, pose_to_matrix([p.x, p.y, p.z], [r.x, r.y, r.z, r.w]))
         elif topic == "/joint_states":
-            joints.add(_stamp(msg.header), list(msg.name), list(msg.position))
-            first_joints_ns = _stamp(msg.header) if first_joints_ns is None else first_joints_ns
+            joints.add(header_stamp_ns(msg.header), list(msg.name), list(msg.position))
+            first_joints_ns = header_stamp_ns(msg.header) if first_joints_ns is None else first_joints_ns
         elif topic == MODE_TOPIC:
             label = str(msg.label)
         elif topic == "/episode":
             if msg.event == EPISODE_START:
                 if current is not None:
                     report(f"{path}: episode {current.episode}: no END before the START of episode {msg.episode}; skipped")
-                current = _Episode(int(msg.episode), str(msg.object_id), _stamp(msg.header))
+                current = _Episode(int(msg.episode), str(msg.object_id), header_stamp_ns(msg.header))
                 for item in waiting:
                     if item[2] >= current.start_ns:
                         _take(path, current, item, report)
@@ -209,7 +206,7 @@ def _first_pass(path: Path, source: BagSource, topics: set[str], cameras: dict[s
                 current = None
                 waiting.clear()
         else:  # a keypose or a cloud
-            item = (topic, message.index, _stamp(msg.header), _keypose(msg) if topic == "/keypose" else None)
+            item = (topic, message.index, header_stamp_ns(msg.header), _keypose(msg) if topic == "/keypose" else None)
             if current is None:
                 waiting.append(item)  # part of the next episode if stamped at or after its START
             else:
@@ -244,7 +241,7 @@ def _close(path: Path, ep: _Episode, end, label: str, cameras: dict[str, str], r
                f"{[PHASE_NAMES[p] for p in np.argsort(orders)]}); skipped")
         return False
     try:
-        ep.chosen = choose_clouds(ep, _stamp(end.header), cameras)
+        ep.chosen = choose_clouds(ep, header_stamp_ns(end.header), cameras)
     except ValueError as exc:
         report(f"{where}: {exc}; skipped")
         return False

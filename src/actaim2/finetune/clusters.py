@@ -46,7 +46,8 @@ def cluster_table(ids: Sequence[str], labels: Sequence[str], clusters: np.ndarra
         "by_label": by_label,
         "label_cluster": majority,
         "label_cluster_share": {label: by_label[label][c] / sum(by_label[label]) for label, c in majority.items()},
-        "demonstrations": [{"id": i, "label": l or NO_LABEL, "cluster": int(c)} for i, l, c in zip(ids, labels, clusters)],
+        "demonstrations": [{"id": i, "label": label or NO_LABEL, "cluster": int(c)}
+                           for i, label, c in zip(ids, labels, clusters)],
     }
 
 

@@ -35,16 +35,16 @@ from typing import Sequence
 import numpy as np
 import torch
 
+from actaim2.artifact import checkpoint
 from actaim2.data.labelling import dataset_encoder, embeddings_encoder_digest
 from actaim2.data.splits import TRAIN
-from actaim2.data.storage import DatasetReader
+from actaim2.data.storage import DatasetReader, dataset_digest
 from actaim2.finetune.clusters import assign_clusters, cluster_table
 from actaim2.finetune.heldout import heldout_rows
 from actaim2.models.view_geometry import CubePlacement
 from actaim2.perception.config import PerceptionConfig
-from actaim2.train import checkpoint
 from actaim2.train.config import TrainConfig
-from actaim2.train.data import TrainingData, dataset_digest, ensure_cache, open_cache
+from actaim2.train.data import TrainingData, ensure_cache, open_cache
 from actaim2.train.distributed import init_distributed
 from actaim2.train.loop import Trainer
 

@@ -51,9 +51,9 @@ def command(args: argparse.Namespace) -> list[str]:
 
 
 def main(args: argparse.Namespace) -> int:
+    from actaim2.artifact.checkpoint import CheckpointError
     from actaim2.finetune.clusters import format_table
     from actaim2.finetune.finetune import FinetuneConfig, finetune
-    from actaim2.train.checkpoint import CheckpointError
 
     config = FinetuneConfig(phases=tuple(args.phases), epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
                             heldout_fraction=args.heldout, seed=args.seed, device=args.device)

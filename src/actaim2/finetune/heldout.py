@@ -25,7 +25,7 @@ def heldout_rows(ids: Sequence[str], labels: Sequence[str], fraction: float, see
         raise ValueError(f"{len(ids)} ids but {len(labels)} labels")
     val: list[int] = []
     for label in sorted(set(labels)):
-        rows = sorted((i for i, l in enumerate(labels) if l == label), key=lambda i: _rank(seed, ids[i]))
+        rows = sorted((i for i, given in enumerate(labels) if given == label), key=lambda i: _rank(seed, ids[i]))
         n = int(round(fraction * len(rows)))
         if fraction > 0 and len(rows) >= 2:
             n = min(max(n, 1), len(rows) - 1)

@@ -21,9 +21,16 @@ import sys
 import time
 from pathlib import Path
 
-from actaim2.launch.graph import (GRAPH_ENVIRONMENT, Graph, GraphError, NodeSpec, load_graphs,
-                                  parse_arguments, to_launch_xml)
-from actaim2.ros_main import STACK_DUMP_SIGNAL
+from actaim2.launch.graph import (
+    GRAPH_ENVIRONMENT,
+    Graph,
+    GraphError,
+    NodeSpec,
+    load_graphs,
+    parse_arguments,
+    to_launch_xml,
+)
+from actaim2.runtime import STACK_DUMP_SIGNAL
 
 STOP_TIMEOUT = 10.0  # s a node gets to exit after SIGINT before it is killed
 STACK_DUMP_WAIT = 0.5  # s between asking a node that did not stop for its stacks and killing it
@@ -146,7 +153,7 @@ def stop_all(procs: list[tuple[str, subprocess.Popen, Path]]) -> int:
         try:
             code = proc.wait(timeout=max(0.0, deadline - time.monotonic()))
         except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, STACK_DUMP_SIGNAL)  # a node started by actaim2.ros_main writes where its threads are
+            os.killpg(proc.pid, STACK_DUMP_SIGNAL)  # a node started by actaim2_ros.main writes where its threads are
             time.sleep(STACK_DUMP_WAIT)
             os.killpg(proc.pid, signal.SIGKILL)
             code = proc.wait()

@@ -65,7 +65,13 @@ from torch import nn
 
 from actaim2.data.trajectory import PHASES
 from actaim2.models.rotation_bins import ROTATION_BINS, bins_to_quat
-from actaim2.models.view_geometry import CubePlacement, decode_points, decode_points_in_view, project_cube, smoothed_log_probs
+from actaim2.models.view_geometry import (
+    CubePlacement,
+    decode_points,
+    decode_points_in_view,
+    project_cube,
+    smoothed_log_probs,
+)
 from actaim2.perception.ortho_views import CHANNELS, DEFAULT_RESOLUTION, VIEWS
 
 PROPRIO_DIM = 1 + len(PHASES)  # gripper closed + phase one-hot

@@ -30,6 +30,7 @@ from actaim2.perception.self_filter import RobotSelfFilter
 from actaim2.perception.static_tf import StaticTransformBuffer, UnknownFrameError
 from actaim2.perception.time_sync import ApproximateTimeSync
 from actaim2.robots import RobotSpec
+from actaim2.stamps import header_stamp_ns
 
 
 @dataclass(frozen=True)
@@ -37,10 +38,6 @@ class BagFrame:
     stamp_ns: int  # the newest cloud stamp of the set: the header stamp of both outputs
     fused: FusedCloud  # /fused_points as published unfiltered (world, cube, voxel grid)
     views: np.ndarray  # /ortho_views data: (views, channels, R, R) float32
-
-
-def _stamp(header) -> int:
-    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
 
 
 def bag_frames(bag: Path, config: PerceptionConfig, robot: RobotSpec | None, topics: tuple[str, ...] = ("/points2",),
@@ -68,12 +65,12 @@ def bag_frames(bag: Path, config: PerceptionConfig, robot: RobotSpec | None, top
                     r, p = t.transform.rotation, t.transform.translation
                     tf.set_transform(t.header.frame_id, t.child_frame_id, pose_to_matrix([p.x, p.y, p.z], [r.x, r.y, r.z, r.w]))
             else:
-                joints.add(_stamp(msg.header), list(msg.name), list(msg.position))
+                joints.add(header_stamp_ns(msg.header), list(msg.name), list(msg.position))
         sync = ApproximateTimeSync(len(topics), int(slop * 1e9))
         clouds = [c for c in reader.connections if c.topic in topics]
         for connection, _, raw in reader.messages(connections=clouds):
             msg = reader.deserialize(raw, connection.msgtype)
-            group = sync.add(topics.index(connection.topic), _stamp(msg.header), msg)
+            group = sync.add(topics.index(connection.topic), header_stamp_ns(msg.header), msg)
             if group is None:
                 continue
             try:
@@ -90,7 +87,7 @@ def _frame(perception: Perception, tf: StaticTransformBuffer, joints: JointState
         decoded = decode(fields, msg.data, msg.height, msg.width, msg.point_step, msg.row_step, msg.is_bigendian)
         clouds.append(CameraCloud(decoded.xyz, decoded.rgb, tf.lookup(world, msg.header.frame_id)))
     fused = perception.fuse(clouds)
-    stamps = sorted({_stamp(m.header) for m in group})
+    stamps = sorted({header_stamp_ns(m.header) for m in group})
     shown = fused
     if perception.self_filter is not None:
         perception.self_filter.set_configurations([joints.at(s) for s in stamps])

@@ -1,7 +1,7 @@
 """Byte codec of sensor_msgs/PointCloud2 payloads, without ROS.
 
-The ROS adapter (``actaim2_perception.pointcloud2``) only copies message fields in and out;
-everything that depends on byte layout lives here so it is tested without rclpy and reused
+The ROS adapter (``actaim2_ros.pointcloud2``) only copies message fields in and out;
+everything that depends on byte layout lives here so it is tested without ROS and reused
 by the bag reader of ``actaim2 render``.
 
 API:

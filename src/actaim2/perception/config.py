@@ -27,7 +27,13 @@ import yaml
 
 from actaim2.config_fields import check_fields, load_yaml_config
 from actaim2.perception.fusion import FusionConfig
-from actaim2.perception.ortho_views import CHANNELS, DEFAULT_DEPTH_TOLERANCE, DEFAULT_RESOLUTION, DEFAULT_SPLAT_RADIUS, SPLAT_RADIUS_RANGE
+from actaim2.perception.ortho_views import (
+    CHANNELS,
+    DEFAULT_DEPTH_TOLERANCE,
+    DEFAULT_RESOLUTION,
+    DEFAULT_SPLAT_RADIUS,
+    SPLAT_RADIUS_RANGE,
+)
 
 CONFIG_DIR = Path(__file__).resolve().parent / "configs"
 RENDER_PATHS = ("sapien", "raycast")  # how the simulator makes this rig's pictures (a real rig's data: sapien-trained)

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from actaim2.perception.ortho_views import VIEWS
+from actaim2.stamps import header_stamp_ns
 
 CLOUD_SUFFIXES = (".npz", ".ply", ".pcd")
 
@@ -99,7 +100,7 @@ def _bag_frames(args: argparse.Namespace, perception):
                 if perception.self_filter is not None:
                     perception.self_filter.set_joint_positions(list(msg.name), list(msg.position))
                 continue
-            stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+            stamp = header_stamp_ns(msg.header)
             group = sync.add(topics.index(connection.topic), stamp, msg)
             if group is None:
                 continue

@@ -33,6 +33,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from actaim2.artifact import checkpoint
+from actaim2.artifact.device import choose_device
+from actaim2.artifact.serving import DEFAULT_SERVING, check_noise_scale
 from actaim2.keypose import Keypose
 from actaim2.models.mode_guidance import guide, with_reference
 from actaim2.models.predictor import decode_action, proprio_features
@@ -42,31 +45,10 @@ from actaim2.perception.config import PerceptionConfig
 from actaim2.policy.requests import RequestError, check_cluster, check_embedding, check_phase
 from actaim2.policy.views import Views
 from actaim2.profiling import timed
-from actaim2.train import checkpoint
-from actaim2.train.distributed import choose_device
 
 ROLES = ("selector", "predictor")
-# Fallback keyposes /predict_keypose gives with each keypose by default (policy_node, the evaluation;
-# measured in docs/evaluation.md, "Fallback rotations").
-KEYPOSE_ALTERNATIVES = 4
-# Mode guidance weight /predict_keypose applies by default (policy_node, the evaluation;
-# models/mode_guidance.py). Off: w = 2 cost 4.3 points of SSR on seen objects and no second mode
-# (docs/evaluation.md, "Mode guidance").
-MODE_GUIDANCE = 0.0
-# Spread of the selector's latent draws /sample_mode uses by default (policy_node, the evaluation;
-# ModeSelector.sample's noise_scale): 0 serves each cluster's noise-free eps, as the committed ring5
-# checkpoint's chain was trained to be served and evaluated (docs/evaluation.md, "Twice the training
-# instances"); 1 samples the trained distribution.
-NOISE_SCALE = 0.0
 # Fallback rotations are this far apart (up to the hand's half turn): closer ones meet the same obstacles.
 ALTERNATIVE_SEPARATION_DEG = 30.0
-
-
-def check_noise_scale(value: float, name: str = "noise_scale") -> float:
-    """``value`` if it is a noise scale (>= 0; NaN is not); a ValueError naming ``name`` (a parameter or flag) otherwise."""
-    if not value >= 0.0:
-        raise ValueError(f"{name} {value} is not a scale >= 0")
-    return value
 
 
 class PolicyLoadError(RuntimeError):
@@ -155,7 +137,7 @@ class PolicyModel:
 
     @timed("model forward")
     @torch.inference_mode()
-    def sample_mode(self, views: Views, cluster: int, seed: int, noise_scale: float = NOISE_SCALE) -> ModeSample:
+    def sample_mode(self, views: Views, cluster: int, seed: int, noise_scale: float = DEFAULT_SERVING.noise_scale) -> ModeSample:
         """``noise_scale``: the spread of the latent draw (``ModeSelector.sample``; 0 = the cluster's noise-free eps)."""
         check_noise_scale(noise_scale)
         if self.selector is None:

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
-from actaim2.train.checkpoint import paths
+from actaim2.artifact.checkpoint import paths
 
 COMMITTED = "actaim2_ring5"  # the committed ring5 checkpoint: policy_node's default, the demo's
 

@@ -10,8 +10,7 @@ from typing import Sequence
 
 import numpy as np
 
-from actaim2.keypose import PHASE_NAMES
-
+from actaim2 import keypose
 
 NO_VIEWS = "no views yet"
 STALE = "stale observation"
@@ -39,10 +38,11 @@ def check_embedding(values: Sequence[float], dim: int) -> np.ndarray:
 
 
 def check_phase(phase: int) -> int:
-    if not 0 <= int(phase) < len(PHASE_NAMES):
-        known = ", ".join(f"{i} ({name})" for i, name in enumerate(PHASE_NAMES))
-        raise RequestError(f"unknown phase {phase}: expected one of {known}")
-    return int(phase)
+    """The requested phase as an int, or a RequestError (the keypose's own phase check)."""
+    try:
+        return keypose.check_phase(phase)
+    except ValueError as exc:
+        raise RequestError(str(exc)) from None
 
 
 def check_cluster(cluster: int, clusters: int) -> int | None:

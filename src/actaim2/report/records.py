@@ -30,11 +30,11 @@ from pathlib import Path
 
 from actaim2.data.stats import RUNS_FILE
 from actaim2.data.storage import INDEX_FILE, LABELS_FILE, SKIPPED_FILE
+from actaim2.eval.results import RECORD_SAMPLES_FILE as SAMPLES_FILE
 from actaim2.eval.results import RESULTS_FILE, RUN_FILE, machine_description
 
 RESULTS_DIR = "results"
 RECORD_FILE = "record.json"
-SAMPLES_FILE = "results.jsonl.gz"
 VALIDATION_FILE = "validation.json"  # actaim2 validate's report (train/validation.py)
 MAX_BYTES = 2 * 1024 * 1024  # a record's files together stay under this
 

@@ -16,8 +16,8 @@ from actaim2.data.success import label_metrics
 from actaim2.eval import tables as et
 from actaim2.eval.evalset import SPLIT_TITLES, SPLITS
 from actaim2.eval.methods import METHODS
-from actaim2.eval.protocol import comparison
-from actaim2.eval.stats import Rate
+from actaim2.eval.paired import comparison
+from actaim2.metrics.stats import Rate
 from actaim2.report.records import Record, RecordError
 
 PAPER_COLUMN = {split: i for i, split in enumerate(SPLITS)}  # the paper's AVG columns, in order

@@ -33,8 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from actaim2.sim.env import SimEnv
     from actaim2.rollout.expert import ScriptedExpert, expert_tasks
+    from actaim2.sim.env import SimEnv
     from actaim2.sim.objects.catalog import category_instances
 
     env = SimEnv(args.robot)

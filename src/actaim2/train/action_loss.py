@@ -27,7 +27,12 @@ import torch.nn.functional as F
 
 from actaim2.models.predictor import PredictorOutput
 from actaim2.models.rotation_bins import ROTATION_BINS, canonical_grasp, quat_to_bins
-from actaim2.models.view_geometry import HEATMAP_SIGMA, CubePlacement, depth_targets, heatmap_targets
+from actaim2.models.view_geometry import (
+    HEATMAP_SIGMA,
+    CubePlacement,
+    depth_targets,
+    heatmap_targets,
+)
 
 
 class ActionTargets(NamedTuple):

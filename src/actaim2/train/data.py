@@ -19,24 +19,11 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from actaim2.data.storage import dataset_digest
 from actaim2.data.trajectory import PHASES
 from actaim2.progress import progress
 
 CACHE_DIR = "cache"
-_DIGESTED = ("dataset.json", "index.jsonl", "labels.jsonl", "embeddings.npz")
-
-
-def dataset_digest(root: str | Path) -> str:
-    """SHA-256 (16 hex) of the files that decide what training sees: info, index, labels, embeddings."""
-    h = hashlib.sha256()
-    for name in _DIGESTED:
-        p = Path(root) / name
-        h.update(name.encode())
-        if p.exists():
-            h.update(p.read_bytes())
-    return h.hexdigest()[:16]
-
-
 @dataclass
 class TrainingData:
     """N trajectories; arrays may be memory-mapped (views) - index them, do not copy them whole."""
@@ -170,11 +157,11 @@ def ensure_cache(root: str | Path, perception_config, splits: list[str], show_pr
     The robot self-filter, when the configuration asks for robot-hidden views, is the dataset's
     own robot's (``dataset.json``), so views match what collection and serving see.
     """
+    from actaim2.artifact.checkpoint import perception_record
     from actaim2.data.storage import DatasetReader
     from actaim2.perception.pipeline import Perception
     from actaim2.perception.self_filter import RobotSelfFilter
     from actaim2.robots import load_robot_spec
-    from actaim2.train.checkpoint import perception_record
 
     robot = DatasetReader(root).info.get("robot", "panda")
     self_filter = RobotSelfFilter(load_robot_spec(robot), perception_config.self_filter_margin) \
@@ -186,9 +173,9 @@ def ensure_cache(root: str | Path, perception_config, splits: list[str], show_pr
 def open_cache(root: str | Path, perception_config, splits: list[str]) -> TrainingData:
     """The cached views of ``splits`` (built by :func:`ensure_cache`), memory-mapped, with each trajectory's
     outcome when every one has a DoF measurement."""
+    from actaim2.artifact.checkpoint import perception_record
     from actaim2.data.storage import DatasetReader, trajectory_outcome
     from actaim2.models.view_geometry import CubePlacement
-    from actaim2.train.checkpoint import perception_record
 
     folder = cache_folder(root, splits, perception_record(perception_config)["digest"])
     data = load_cache(folder, CubePlacement.of(perception_config))

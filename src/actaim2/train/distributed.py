@@ -17,6 +17,8 @@ import torch
 import torch.distributed as dist
 from torch.nn.parallel import DistributedDataParallel
 
+from actaim2.artifact.device import choose_device
+
 
 @dataclass(frozen=True)
 class DistContext:
@@ -41,15 +43,6 @@ def set_cpu_threads(threads: int) -> None:
     processes 569 s on one thread against more than 700 s on two (docs/training.md)."""
     if threads > 0:
         torch.set_num_threads(threads)
-
-
-def choose_device(preference: str, local_rank: int = 0) -> torch.device:
-    """"auto": CUDA when present, else CPU; "cpu" / "cuda" as asked (cuda without a GPU is an error)."""
-    if preference == "cpu" or (preference == "auto" and not torch.cuda.is_available()):
-        return torch.device("cpu")
-    if not torch.cuda.is_available():
-        raise RuntimeError("device 'cuda' requested but torch sees no CUDA device")
-    return torch.device("cuda", local_rank)
 
 
 def init_distributed(preference: str = "auto") -> DistContext:

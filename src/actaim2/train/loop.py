@@ -33,16 +33,21 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from actaim2.artifact import checkpoint
 from actaim2.data.storage import object_of, sampler_of
-from actaim2.models.predictor import CONDITIONING_LAYERS, ActionPredictor, PredictorConfig, proprio_features
-from actaim2.models.registry import build_selector
-from actaim2.models.selector_base import ModeSelector
 from actaim2.models.augment import augment
 from actaim2.models.gumbel import gumbel_temperature
+from actaim2.models.predictor import (
+    CONDITIONING_LAYERS,
+    ActionPredictor,
+    PredictorConfig,
+    proprio_features,
+)
+from actaim2.models.registry import build_selector
+from actaim2.models.selector_base import ModeSelector
 from actaim2.models.view_geometry import CubePlacement
 from actaim2.perception.ortho_views import CHANNELS
 from actaim2.progress import progress
-from actaim2.train import checkpoint
 from actaim2.train.action_loss import action_loss, action_targets, heatmap_log_likelihood
 from actaim2.train.balance import cluster_balanced_weights
 from actaim2.train.config import TrainConfig
@@ -50,7 +55,12 @@ from actaim2.train.data import TrainingData
 from actaim2.train.distributed import DistContext, rank_slice, wrap
 from actaim2.train.elbo import selector_loss
 from actaim2.train.mode_contrast import contrast_partners, draw_partners, mode_contrast_loss
-from actaim2.train.served_eps import nearest_centre_pools, neighbour_eps_pools, pick_from_pools, served_eps_pools
+from actaim2.train.served_eps import (
+    nearest_centre_pools,
+    neighbour_eps_pools,
+    pick_from_pools,
+    served_eps_pools,
+)
 
 STATE = "train_state"
 POLICY = "policy"

@@ -52,13 +52,14 @@ def main(args: argparse.Namespace) -> int:
 
     import torch.distributed as dist
 
+    from actaim2.artifact.checkpoint import perception_record
     from actaim2.data.labelling import dataset_encoder, embeddings_encoder_digest
     from actaim2.data.splits import TRAINING_SPLITS
+    from actaim2.data.storage import dataset_digest
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.perception.config import load_perception_config
-    from actaim2.train.checkpoint import perception_record
     from actaim2.train.config import load_config
-    from actaim2.train.data import dataset_digest, ensure_cache, holdout_split, open_cache
+    from actaim2.train.data import ensure_cache, holdout_split, open_cache
     from actaim2.train.distributed import init_distributed, set_cpu_threads, shutdown
     from actaim2.train.loop import Trainer
 

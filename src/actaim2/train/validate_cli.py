@@ -1,4 +1,4 @@
-"""`actaim2 validate`: curves and validation figures of a training run (issue 11, item 6).
+"""`actaim2 validate`: curves and validation figures of a training run.
 
 Examples:
     actaim2 validate runs/cpu --data data/v2                       # runs/cpu/policy on train_unseen_instance
@@ -22,7 +22,7 @@ from pathlib import Path
 
 from actaim2.data.collect_cli import add_catalogue_arguments
 from actaim2.data.splits import GENERATED, PARTNET, PARTNET_VAL, UNSEEN_INSTANCE
-from actaim2.eval.protocol_cli import add_protocol_arguments, splits_files
+from actaim2.protocol.arguments import add_protocol_arguments, splits_files
 from actaim2.train.train_cli import add_threads_argument
 
 DEFAULT_SPLIT = {GENERATED.name: UNSEEN_INSTANCE, PARTNET.name: PARTNET_VAL}  # per catalogue
@@ -47,24 +47,33 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    from actaim2.artifact import checkpoint
+    from actaim2.artifact.device import choose_device
+    from actaim2.artifact.serving import DEFAULT_SERVING, check_noise_scale
     from actaim2.data.splits import catalogue
-    from actaim2.data.storage import DatasetReader, object_of
-    from actaim2.eval.protocol import append_ledger, guarded_ids, protected
-    from actaim2.eval.protocol import check_run as check_protocol
+    from actaim2.data.storage import DatasetReader, dataset_digest, object_of
     from actaim2.models.view_geometry import CubePlacement
     from actaim2.perception.config import load_perception_config
-    from actaim2.policy.inference import NOISE_SCALE, check_noise_scale
-    from actaim2.train import checkpoint
+    from actaim2.protocol.lock import append_ledger, guarded_ids, protected
+    from actaim2.protocol.lock import check_run as check_protocol
     from actaim2.train.curves import plot_curves, read_history
-    from actaim2.train.data import dataset_digest, ensure_cache, open_cache
-    from actaim2.train.distributed import choose_device, set_cpu_threads
-    from actaim2.train.validation import action_figures, drawn_following, markdown, mode_chain_figures, outcome_figures, \
-        predict_keyframes, selector_figures, swapped_following
+    from actaim2.train.data import ensure_cache, open_cache
+    from actaim2.train.distributed import set_cpu_threads
+    from actaim2.train.validation import (
+        action_figures,
+        drawn_following,
+        markdown,
+        mode_chain_figures,
+        outcome_figures,
+        predict_keyframes,
+        selector_figures,
+        swapped_following,
+    )
 
     if args.threads < 0:
         print(f"actaim2 validate: --threads {args.threads} is negative")
         return 2
-    noise_scale = NOISE_SCALE if args.noise_scale is None else args.noise_scale
+    noise_scale = DEFAULT_SERVING.noise_scale if args.noise_scale is None else args.noise_scale
     try:
         check_noise_scale(noise_scale, "--noise-scale")
     except ValueError as exc:

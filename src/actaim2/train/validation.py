@@ -1,4 +1,4 @@
-"""Validation figures of a trained policy on the successes of a split it never saw (issue 11, item 6).
+"""Validation figures of a trained policy on the successes of a split it never saw.
 
 The training curves use a 10% trajectory hold-out of ``train_seen``; these figures measure
 generalisation to unseen *instances* (``train_unseen_instance`` by default), on the trajectories
@@ -41,10 +41,9 @@ alone (a point that does not move; both rates unchanged).
 The links before it, on the same objects (``mode_chain_figures``): does eps name the outcome at
 all (the outcome of each trajectory's nearest other true eps, leave-one-out, against the
 majority), and do the clusters select outcomes (eps drawn from each cluster, draw j on the O_init of the
-object's j-th trajectory as every evaluation sample has its own reset (before 2026-12-06 all on
-the first one's), labelled by the outcome of its nearest true eps; mutual information of cluster and
-label with the evaluation's permutation test, ``actaim2.eval.mode_dependence``)? And how much of
-the evaluation's 2nd-mode SSR do the clusters allow: the Mode SSR (``actaim2.eval.mode_ssr``, its
+object's j-th trajectory as every evaluation sample has its own reset), labelled by the outcome of its nearest true eps; mutual information of cluster and
+label with the evaluation's permutation test, ``actaim2.metrics.mode_dependence``)? And how much of
+the evaluation's 2nd-mode SSR do the clusters allow: the Mode SSR (``actaim2.metrics.mode_ssr``, its
 split-half choice) of those labels, as if every drawn eps were executed with success and reached
 its label's outcome, beside the same with the labels shuffled among the object's draws. With the
 evaluation's 4 draws per cluster it is the 2nd-mode figure a perfect predictor would score there.
@@ -64,9 +63,9 @@ import numpy as np
 import torch
 
 from actaim2.data.trajectory import PHASES
-from actaim2.eval.mode_dependence import Dependence, dependence
-from actaim2.eval.mode_ssr import GroupSample, ModeResult, object_mode_ssr, pooled
-from actaim2.eval.stats import Rate
+from actaim2.metrics.mode_dependence import Dependence, dependence
+from actaim2.metrics.mode_ssr import GroupSample, ModeResult, object_mode_ssr, pooled
+from actaim2.metrics.stats import Rate
 from actaim2.models.predictor import ActionPredictor, decode_action, proprio_features
 from actaim2.models.rotation_bins import grasp_geodesic_deg
 from actaim2.models.selector_base import ModeSelector

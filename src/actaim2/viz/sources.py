@@ -45,10 +45,9 @@ def kind_of(path: Path) -> str:
 
 def _results_file(path: Path) -> Path | None:
     """An evaluation run's results, or a record's (``actaim2.report.records``)."""
-    from actaim2.eval.results import RESULTS_FILE
-    from actaim2.report.records import SAMPLES_FILE
+    from actaim2.eval.results import RECORD_SAMPLES_FILE, RESULTS_FILE
 
-    return next((path / name for name in (RESULTS_FILE, SAMPLES_FILE) if (path / name).is_file()), None)
+    return next((path / name for name in (RESULTS_FILE, RECORD_SAMPLES_FILE) if (path / name).is_file()), None)
 
 
 def bag_paths(path: Path) -> list[Path]:

@@ -17,7 +17,18 @@ from typing import Callable
 import numpy as np
 
 from .model import ObjectModel
-from .parts import GAP, Builder, Grasp, Palette, add_drawer, add_handle, add_hinged_panel, box, cylinder, shell
+from .parts import (
+    GAP,
+    Builder,
+    Grasp,
+    Palette,
+    add_drawer,
+    add_handle,
+    add_hinged_panel,
+    box,
+    cylinder,
+    shell,
+)
 
 deg = np.pi / 180
 

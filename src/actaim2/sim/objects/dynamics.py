@@ -30,7 +30,14 @@ from pathlib import Path
 import numpy as np
 import sapien
 
-from .physics_table import BISTABLE, COUNTERBALANCED, SEMANTIC_ALIASES, JointDynamics, behaviour, category_dynamics
+from .physics_table import (
+    BISTABLE,
+    COUNTERBALANCED,
+    SEMANTIC_ALIASES,
+    JointDynamics,
+    behaviour,
+    category_dynamics,
+)
 
 V_CREEP = 1e-4  # m/s or rad/s: the fastest a joint drifts under a load just below its friction
 MIN_FRICTION = 1e-3  # N or N m: the drive gain's floor, so a frictionless joint is still damped

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .model import Shape, _rpy_matrix, convex_faces
+from .shapes import Shape, convex_faces, rpy_matrix
 
 
 def shape_mass_properties(shape: Shape, density: float) -> tuple[float, np.ndarray, np.ndarray]:
     """(mass, centre of mass, 3x3 inertia about the centre of mass), in the link frame."""
-    R = _rpy_matrix(shape.rpy)
+    R = rpy_matrix(shape.rpy)
     centre = np.asarray(shape.xyz, dtype=float)
     if shape.kind == "box":
         a, b, c = shape.size
@@ -42,9 +42,9 @@ def link_mass_properties(shapes: list[Shape], densities: list[float]) -> tuple[f
         raise ValueError("a link without volume has no mass")
     com = sum(p[0] * p[1] for p in parts) / mass
     inertia = np.zeros((3, 3))
-    for m, c, I in parts:
+    for m, c, part_inertia in parts:
         d = c - com
-        inertia += I + m * (d @ d * np.eye(3) - np.outer(d, d))  # parallel axis theorem
+        inertia += part_inertia + m * (d @ d * np.eye(3) - np.outer(d, d))  # parallel axis theorem
     return mass, com, inertia
 
 

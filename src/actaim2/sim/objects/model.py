@@ -28,28 +28,12 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-Vec3 = tuple[float, float, float]
-RGBA = tuple[float, float, float, float]
+from .mass import link_mass_properties
+from .physics_table import MATERIALS
+from .shapes import Shape, Vec3, shape_mesh
 
 # Version of the generator's output: bump it to invalidate cached object folders.
 FORMAT_VERSION = 16
-
-
-@dataclass(frozen=True)
-class Shape:
-    """A box (``size`` = full extents), a cylinder (``size`` = (radius, length, 0), axis z) or a
-    convex ``mesh`` (the hull of ``points``, in the shape frame; ``size`` unused).
-
-    ``material`` names a :data:`.physics_table.MATERIALS` entry ("" = the link's material).
-    """
-
-    kind: str
-    size: Vec3
-    xyz: Vec3 = (0.0, 0.0, 0.0)
-    rpy: Vec3 = (0.0, 0.0, 0.0)
-    rgba: RGBA = (0.7, 0.7, 0.7, 1.0)
-    material: str = ""
-    points: tuple = ()
 
 
 @dataclass
@@ -171,7 +155,7 @@ class ObjectModel:
                 if meshes or s.kind == "mesh":
                     rel = mesh_path(link.name, i)
                     (folder / "textured_objs").mkdir(exist_ok=True)
-                    _write_obj(folder / rel, *_shape_mesh(s))
+                    _write_obj(folder / rel, *shape_mesh(s))
                     mesh_files[(link.name, i)] = rel
         (folder / "mobility.urdf").write_text(self.to_urdf(mesh_files))
         semantics = []
@@ -222,14 +206,11 @@ def _fmt(values) -> str:
 
 def _inertial_xml(link: Link) -> str:
     """``<inertial>`` of a link from its shapes' volumes and materials."""
-    from .mass import link_mass_properties
-    from .physics_table import MATERIALS
-
     densities = [MATERIALS[s.material or link.material].density for s in link.shapes]
-    mass, com, I = link_mass_properties(link.shapes, densities)
+    mass, com, inertia = link_mass_properties(link.shapes, densities)
     return (f'    <inertial><origin xyz="{_fmt(com)}" rpy="0 0 0"/><mass value="{mass:.6g}"/>'
-            f'<inertia ixx="{I[0, 0]:.6g}" ixy="{I[0, 1]:.6g}" ixz="{I[0, 2]:.6g}" iyy="{I[1, 1]:.6g}" '
-            f'iyz="{I[1, 2]:.6g}" izz="{I[2, 2]:.6g}"/></inertial>')
+            f'<inertia ixx="{inertia[0, 0]:.6g}" ixy="{inertia[0, 1]:.6g}" ixz="{inertia[0, 2]:.6g}" iyy="{inertia[1, 1]:.6g}" '
+            f'iyz="{inertia[1, 2]:.6g}" izz="{inertia[2, 2]:.6g}"/></inertial>')
 
 
 def _geometry_xml(s: Shape, mesh: str | None) -> str:
@@ -240,53 +221,6 @@ def _geometry_xml(s: Shape, mesh: str | None) -> str:
     if s.kind == "cylinder":
         return f'<geometry><cylinder radius="{s.size[0]:.6g}" length="{s.size[1]:.6g}"/></geometry>'
     raise ValueError(f"unknown shape kind {s.kind!r}")
-
-
-def _rpy_matrix(rpy: Vec3) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_euler("xyz", rpy).as_matrix()
-
-
-def _shape_mesh(s: Shape, segments: int = 24) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices (in the link frame, the shape's origin applied) and triangles of a shape."""
-    if s.kind == "box":
-        h = np.asarray(s.size) / 2
-        v = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=float) * h
-        f = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
-                      [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
-    elif s.kind == "mesh":
-        v = np.asarray(s.points, dtype=float)
-        f = convex_faces(v)
-    elif s.kind == "cylinder":
-        r, length = s.size[0], s.size[1]
-        a = np.linspace(0, 2 * np.pi, segments, endpoint=False)
-        ring = np.stack([r * np.cos(a), r * np.sin(a)], axis=1)
-        v = np.concatenate([np.c_[ring, np.full(segments, -length / 2)], np.c_[ring, np.full(segments, length / 2)],
-                            [[0, 0, -length / 2], [0, 0, length / 2]]])
-        f = []
-        for i in range(segments):
-            k = (i + 1) % segments
-            f += [[i, k, segments + k], [i, segments + k, segments + i],
-                  [2 * segments, k, i], [2 * segments + 1, segments + i, segments + k]]
-        f = np.array(f)
-    else:
-        raise ValueError(f"unknown shape kind {s.kind!r}")
-    return v @ _rpy_matrix(s.rpy).T + np.asarray(s.xyz), f
-
-
-def convex_faces(points: np.ndarray) -> np.ndarray:
-    """Outward-facing triangles of the convex hull of ``points`` (indices into ``points``)."""
-    from scipy.spatial import ConvexHull
-
-    hull = ConvexHull(points)
-    faces = hull.simplices.copy()
-    centre = points[hull.vertices].mean(axis=0)
-    for k, f in enumerate(faces):
-        normal = np.cross(points[f[1]] - points[f[0]], points[f[2]] - points[f[0]])
-        if normal @ (points[f[0]] - centre) < 0:
-            faces[k] = f[[0, 2, 1]]
-    return faces
 
 
 def _write_obj(path: Path, vertices: np.ndarray, faces: np.ndarray) -> None:

@@ -21,8 +21,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .model import RGBA, Handle, Joint, Link, ObjectModel, Shape, Vec3
+from .model import Handle, Joint, Link, ObjectModel
 from .physics_table import HANDLE_MATERIAL, part_material, sample_dynamics
+from .shapes import RGBA, Shape, Vec3
 
 GAP = 0.002  # clearance between neighbouring panels (m)
 # A robot at its home pose keeps its hand within ~0.42 m of its base (Panda's tcp is at 0.31 m):

@@ -34,8 +34,8 @@ import numpy as np
 
 from .errors import ObjectLoadError
 from .mesh import convex_hull, read_mesh
-from .parts import HOME_CLEARANCE
 from .partnet import ObjectFolder
+from .parts import HOME_CLEARANCE
 
 WORKSPACE_CENTER = np.array([0.75, 0.0, 0.4])  # m, world: where objects stand and the cameras look
 WORKSPACE_HALF_EXTENT = 0.6  # m

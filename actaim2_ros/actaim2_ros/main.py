@@ -18,37 +18,36 @@ one ``cannot start: <why>`` line and exit code 1 instead of a traceback, and shu
 safe order: spinning stopped (a client's spin thread joined: out of rcl, no callback running; a
 thread left inside rcl aborted the process at exit), executor, node, context.
 
-Why here and not in a ROS package: as for :mod:`actaim2.ros_params`, every node package depends
-on this library while no ROS package is a dependency of all the others. rclpy is imported inside
-the functions, so the library stays importable without ROS.
 """
 from __future__ import annotations
 
 import faulthandler
 import signal
 import threading
-from typing import TYPE_CHECKING, Callable, TypeVar
+from typing import Callable, TypeVar
 
-from actaim2.runtime import apply_ros_defaults
+import rclpy
+from rclpy.executors import (
+    Executor,
+    ExternalShutdownException,
+    MultiThreadedExecutor,
+    SingleThreadedExecutor,
+)
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 
-if TYPE_CHECKING:
-    from rclpy.executors import Executor
-    from rclpy.node import Node
-    from rclpy.signals import SignalHandlerOptions
+from actaim2.runtime import STACK_DUMP_SIGNAL, apply_ros_defaults
 
 SHUTDOWN_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 SPIN_POLL = 0.1  # wall seconds: the longest a spin loop waits before it looks at its flag or deadline again
-STACK_DUMP_SIGNAL = signal.SIGUSR1  # every thread's stack to stderr (faulthandler: written even while a thread holds the GIL)
 
 
-N = TypeVar("N", bound="Node")
+N = TypeVar("N", bound=Node)
 
 
 def spin(make_node: Callable[[], Node], name: str, args: list[str] | None = None, threads: int = 1) -> int:
     """Run ``make_node()`` with ``threads`` executor threads until Ctrl-C or until the node shuts
     its context down itself (``self.context.try_shutdown()``). Exit code 0, or 1 if it cannot start."""
-    import rclpy
-    from rclpy.executors import ExternalShutdownException
 
     _init(args)
     try:
@@ -81,8 +80,6 @@ def spin_until(make_node: Callable[[threading.Event], Node], name: str, args: li
     node's last work, returning the exit code), called while the context is up and the node's
     executor (``node.executor``) can still spin. A signal during start-up is acted on as soon as
     the node is up."""
-    from rclpy.executors import ExternalShutdownException
-
     stop = _init_stoppable(args)
     node = _start(lambda: make_node(stop), name)
     if node is None:
@@ -134,8 +131,6 @@ class BackgroundSpinner:
     from the spin thread, or a task's "exception was never retrieved")."""
 
     def __init__(self, *nodes: Node) -> None:
-        from rclpy.executors import SingleThreadedExecutor
-
         self.executor = SingleThreadedExecutor()
         for node in nodes:
             self.executor.add_node(node)
@@ -144,8 +139,6 @@ class BackgroundSpinner:
         self._thread.start()
 
     def _spin(self) -> None:
-        from rclpy.executors import ExternalShutdownException
-
         try:
             while not self._done.is_set() and self.executor.context.ok():
                 self.executor.spin_once(timeout_sec=SPIN_POLL)
@@ -161,8 +154,6 @@ class BackgroundSpinner:
 def _init(args: list[str] | None, signal_handler_options: SignalHandlerOptions | None = None) -> None:
     """The project's ROS defaults, the stack dump on :data:`STACK_DUMP_SIGNAL`, then ``rclpy.init``
     (None: with rclpy's own SIGINT and SIGTERM handlers)."""
-    import rclpy
-
     apply_ros_defaults()
     faulthandler.register(STACK_DUMP_SIGNAL, all_threads=True)
     rclpy.init(args=args, signal_handler_options=signal_handler_options)
@@ -173,8 +164,6 @@ def _init_stoppable(args: list[str] | None) -> threading.Event:
     handler would shut the context down before running goals could be cancelled or answered, and a
     KeyboardInterrupt raised wherever the main thread is (inside the executor's own code, inside
     SAPIEN's start-up) left the executor unable to spin or crashed the process at exit."""
-    from rclpy.signals import SignalHandlerOptions
-
     _init(args, SignalHandlerOptions.NO)
     stop = threading.Event()
     for signum in SHUTDOWN_SIGNALS:
@@ -184,8 +173,6 @@ def _init_stoppable(args: list[str] | None) -> threading.Event:
 
 def _start(make_node: Callable[[], N], name: str) -> N | None:
     """The node, or None after one error line (and the context shut down) if it cannot start."""
-    import rclpy
-
     try:
         return make_node()
     except (OSError, ValueError) as exc:
@@ -195,14 +182,10 @@ def _start(make_node: Callable[[], N], name: str) -> N | None:
 
 
 def _executor(threads: int) -> Executor:
-    from rclpy.executors import MultiThreadedExecutor, SingleThreadedExecutor
-
     return SingleThreadedExecutor() if threads == 1 else MultiThreadedExecutor(num_threads=threads)
 
 
 def _close(executor: Executor, node: Node) -> None:
-    import rclpy
-
     executor.shutdown()
     node.destroy_node()
     rclpy.try_shutdown()

@@ -41,7 +41,13 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from actaim2.eval.stats import Estimate, Rate, RateDifference, bootstrap_weights, pooled_and_macro
+from actaim2.metrics.stats import (
+    Estimate,
+    Rate,
+    RateDifference,
+    bootstrap_weights,
+    pooled_and_macro,
+)
 
 Mode = tuple[str, int]  # (DoF, direction)
 HALVINGS = 100  # random halvings the comparison is averaged over, at least

@@ -4,12 +4,10 @@ rclpy 7.1 (the Jazzy wheels installed here) registers a goal, cancel or result r
 after sending it. Under a MultiThreadedExecutor another thread can take the server's answer in
 between, find no request for it, log "Ignoring unexpected goal response. There may be more than
 one action server for the action ..." and drop it: the request's future never completes, and
-the caller sees a goal "not accepted" once its wait runs out. Measured here (scripted_teleop
-through sim_node and control_node, 12 episodes, the same seeds): with rclpy's client 4 answers
-were lost (3 FollowJointTrajectory in control_node, 1 /execute_keypose) and 9/12 episodes
-succeeded; with this one none was lost and 12/12 succeeded. Upstream fixed it with a lock taken around sending-and-registering and around
-handling an answer (ros2/rclpy#1308, backported to Jazzy in #1519); this class is that lock for
-the rclpy installed. Feedback and status messages are handled outside the lock, as before.
+the caller sees a goal "not accepted" once its wait runs out (docs/control.md). Upstream fixed
+it with a lock taken around sending-and-registering and around handling an answer
+(ros2/rclpy#1308, backported to Jazzy in #1519); this class is that lock for the rclpy installed.
+Feedback and status messages are handled outside the lock.
 """
 from __future__ import annotations
 

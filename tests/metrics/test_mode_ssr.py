@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from actaim2.eval.evalset import catalogue_objects
-from actaim2.eval.mode_ssr import GroupSample, object_mode_ssr, pooled, rank_modes
 from actaim2.eval.presets import PRESETS
 from actaim2.eval.sources import task_group
 from actaim2.eval.tasks import plan_tasks
+from actaim2.metrics.mode_ssr import GroupSample, object_mode_ssr, pooled, rank_modes
 
 OPEN, CLOSE, OTHER = ("drawer", 1), ("drawer", -1), ("door", 1)
 

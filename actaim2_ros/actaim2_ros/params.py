@@ -5,12 +5,6 @@ comments for people, in ``<package>/config/<node>.yaml``. :func:`declare_paramet
 table on a node (descriptions, optionally read-only) and returns the values in effect;
 :func:`yaml_differences` compares a shipped YAML with its table, so one test keeps every node's
 YAML honest.
-
-Why here and not in a ROS package: every node package already depends on this library, while
-no ROS package is a dependency of all the others (a helper in ``actaim2_perception`` would make
-the simulator and the policy depend on perception for a reason that has nothing to do with it).
-The ROS import stays inside :func:`declare_parameters`, so the library remains importable, and
-the YAML check runnable, without ROS.
 """
 from __future__ import annotations
 
@@ -18,14 +12,14 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import yaml
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.node import Node
 
 ParameterTable = Mapping[str, tuple[Any, str]]
 
 
-def declare_parameters(node: Any, table: ParameterTable, read_only: bool = False) -> dict[str, Any]:
+def declare_parameters(node: Node, table: ParameterTable, read_only: bool = False) -> dict[str, Any]:
     """Declare every parameter of ``table`` on the rclpy ``node``; return {name: value in effect}."""
-    from rcl_interfaces.msg import ParameterDescriptor
-
     for name, (default, description) in table.items():
         node.declare_parameter(name, default, ParameterDescriptor(description=description, read_only=read_only))
     return {name: node.get_parameter(name).value for name in table}

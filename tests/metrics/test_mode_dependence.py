@@ -4,8 +4,8 @@ from __future__ import annotations
 import numpy as np
 from sklearn.metrics import mutual_info_score
 
-from actaim2.eval.mode_dependence import dependence, dependence_cells, mutual_information
 from actaim2.eval.tables import report
+from actaim2.metrics.mode_dependence import dependence, dependence_cells, mutual_information
 
 OUTCOMES = (["drawer", 1], ["drawer", -1], None)  # open, close, failure
 

@@ -1,29 +1,22 @@
-"""actaim2_msgs/Keypose <-> :class:`actaim2.keypose.Keypose`, the one conversion every node uses.
-
-Here rather than in a ROS package for the reason :mod:`actaim2.ros_main` gives: policy_node,
-control_node and the episode runner all convert keyposes, and no ROS package is a dependency of
-the others. The message type is imported inside the functions, so the library stays importable
-without ROS.
-"""
+"""actaim2_msgs/Keypose <-> :class:`actaim2.keypose.Keypose`, the one conversion every node uses
+(policy_node, control_node, the episode runner, viz_node)."""
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
+from actaim2_msgs.msg import Keypose as KeyposeMsg
+from builtin_interfaces.msg import Time
 
 from actaim2.keypose import Keypose
 
 
-def keypose_data(msg: Any) -> Keypose:
+def keypose_data(msg: KeyposeMsg) -> Keypose:
     """A Keypose message (frame ``world``) as the library's keypose."""
     p, q = msg.pose.position, msg.pose.orientation
     return Keypose(int(msg.phase), np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w]), bool(msg.gripper_closed))
 
 
-def keypose_msg(keypose: Keypose, stamp: Any) -> Any:
+def keypose_msg(keypose: Keypose, stamp: Time) -> KeyposeMsg:
     """The library's keypose as a Keypose message in frame ``world`` stamped ``stamp`` (builtin_interfaces/Time)."""
-    from actaim2_msgs.msg import Keypose as KeyposeMsg
-
     msg = KeyposeMsg(gripper_closed=bool(keypose.gripper_closed), phase=int(keypose.phase))
     msg.header.frame_id = "world"
     msg.header.stamp = stamp

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from actaim2.eval.stats import Rate, wilson_interval
+from actaim2.metrics.stats import Rate, wilson_interval
 
 
 @pytest.mark.parametrize("successes, trials, lower, upper", [

@@ -1,0 +1,1 @@
+"""Checks of the repository itself, run as ``python -m actaim2.tools.<name>``."""
