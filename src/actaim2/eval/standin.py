@@ -96,17 +96,22 @@ def mode_clusters(condition: str, finetune: dict | None, weights_sha256: str | N
                   overrides: dict[str, int | None]) -> tuple[dict[str, int], str]:
     """(mode -> the cluster asked for it, where each came from) for ``condition``.
 
-    ``finetune`` is the fine-tuned checkpoint's ``lineage.finetune``: after fine-tuning its ``after`` cluster table,
-    before it its ``before`` table (the same labelled demonstrations through the parent's selector, so each checkpoint
-    is asked for the cluster its own selector puts the demonstrations in), usable only when the "before" checkpoint
-    is that parent. ``overrides`` (mode -> cluster, None: not given) replace the tables'.
+    ``finetune`` is the fine-tuned checkpoint's ``lineage.finetune``: after fine-tuning the label -> cluster map it
+    was trained with (``mode_labels.label_cluster``, what ``/sample_mode`` serves a mode label by), else its ``after``
+    cluster table; before it its ``before`` table (the same labelled demonstrations through the parent's selector, so
+    each checkpoint is asked for the cluster its own selector puts the demonstrations in), usable only when the
+    "before" checkpoint is that parent. ``overrides`` (mode -> cluster, None: not given) replace the tables'.
     """
     table: dict[str, int] = {}
     why_not = "no fine-tuned checkpoint (--after) with lineage.finetune"
+    source = f"lineage.finetune.{condition}.clusters.label_cluster"
     if finetune is not None:
         parent = (finetune.get("parent") or {}).get("weights_sha256")
+        trained = (finetune.get("mode_labels") or {}).get("label_cluster")
         if condition == "before" and parent != weights_sha256:
             why_not = f"the fine-tuned checkpoint's parent has weights {parent}, the before checkpoint {weights_sha256}"
+        elif condition == "after" and trained:
+            table, source = trained, "lineage.finetune.mode_labels.label_cluster"
         else:
             table = finetune[condition]["clusters"]["label_cluster"]
     chosen, sources = {}, []
@@ -116,7 +121,7 @@ def mode_clusters(condition: str, finetune: dict | None, weights_sha256: str | N
             sources.append(f"{mode}: --{mode}-cluster")
         elif mode in table:
             chosen[mode] = int(table[mode])
-            sources.append(f"{mode}: lineage.finetune.{condition}.clusters.label_cluster")
+            sources.append(f"{mode}: {source}")
         else:
             raise ValueError(f"{condition}: no cluster for {mode} ({why_not if not table else f'no {mode} demonstration in the table'}): "
                              f"give --{mode}-cluster")
