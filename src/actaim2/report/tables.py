@@ -172,6 +172,13 @@ def dof_change_table(records: Sequence[Record]) -> list[str]:
 
 
 # marker table name -> renderer of the records the marker names
+def self_filter_table(records: Sequence[Record]) -> list[str]:
+    """``actaim2 bench standin-self-filter``'s table: arm left and scene removed by the self-filter per placement."""
+    from actaim2.bench.standin_self_filter import summary_table
+
+    return summary_table([s for r in records for s in r.samples])
+
+
 TABLES: dict[str, Callable[[Sequence[Record]], list[str]]] = {
     "results": results_table,
     "runs": runs_table,
@@ -185,4 +192,5 @@ TABLES: dict[str, Callable[[Sequence[Record]], list[str]]] = {
     "paper": lambda records: et.paper_table(),
     "samplers": samplers_table,
     "dof_change": dof_change_table,
+    "self_filter": self_filter_table,
 }
