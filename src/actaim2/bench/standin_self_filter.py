@@ -46,7 +46,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--placements", type=int, default=10, help="held-out placements of the stand-in evaluation")
     parser.add_argument("--render-path", default="sapien", choices=["sapien", "raycast"],
                         help="sapien: the visual meshes, as the demonstrations were recorded")
-    parser.add_argument("--fit-depth-scale", action="store_true", help="also fit the depth scale (RefinementLimits)")
     parser.add_argument("--out", type=Path, default=Path("runs/standin_self_filter"), help="samples.jsonl and summary")
     parser.add_argument("--record", help="also write the committed record results/RECORD (actaim2 report)")
 
@@ -75,7 +74,7 @@ def pose_error(T: np.ndarray, T_true: np.ndarray) -> dict:
             "deg": round(float(np.rad2deg(Rotation.from_matrix(delta[:3, :3]).magnitude())), 3)}
 
 
-def measure(placements: int, render_path: str, fit_depth_scale: bool) -> list[dict]:
+def measure(placements: int, render_path: str) -> list[dict]:
     from actaim2.control.collision import CollisionChecker, Workspace
     from actaim2.control.executor import KeyposeRunner
     from actaim2.control.ik import IKOptions, IKSolver
@@ -83,7 +82,7 @@ def measure(placements: int, render_path: str, fit_depth_scale: bool) -> list[di
     from actaim2.control.planner import KeyposePlanner, PlannerOptions
     from actaim2.eval.standin import placement_seeds
     from actaim2.perception.config import load_perception_config
-    from actaim2.perception.extrinsic_refinement import ExtrinsicRefiner, RefinementLimits, RobotSurface
+    from actaim2.perception.extrinsic_refinement import ExtrinsicRefiner, RobotSurface
     from actaim2.perception.self_filter import RobotSelfFilter
     from actaim2.rollout.expert import ExpertTask, PlanningError
     from actaim2.rollout.scripted_teleop import ScriptedTeleoperator
@@ -97,7 +96,7 @@ def measure(placements: int, render_path: str, fit_depth_scale: bool) -> list[di
     planner = KeyposePlanner(robot, checker, IKSolver(robot, checker, IKOptions()), PlannerOptions())
     teleoperator = ScriptedTeleoperator(env, seed=0)
     self_filter = RobotSelfFilter(env.spec, load_perception_config(RIG).self_filter_margin)
-    refiner = ExtrinsicRefiner(RobotSurface(env.spec), RefinementLimits(fit_depth_scale=fit_depth_scale))
+    refiner = ExtrinsicRefiner(RobotSurface(env.spec))
     robot_ids = list(env.sim.robot_entity_ids())
     samples = []
     for p, seed in enumerate(placement_seeds(placements)):
@@ -124,7 +123,7 @@ def measure(placements: int, render_path: str, fit_depth_scale: bool) -> list[di
             print(f"placement {p}: {exc}; O_final where the arm stopped")
         clouds["final"] = capture()
         calibration = refiner.calibrate(nominal, [(xyz, joints) for xyz, _, _, joints in clouds.values()])
-        refined, scale = calibration.T_world_optical, calibration.depth_scale
+        refined = calibration.T_world_optical
         for name in ("init", "final"):
             xyz, arm, scene, joints = clouds[name]
             self_filter.set_joint_positions(list(joints), list(joints.values()))
@@ -132,10 +131,10 @@ def measure(placements: int, render_path: str, fit_depth_scale: bool) -> list[di
                             "refined": bool(calibration.accepted), "fits": len(calibration.fits),
                             "fits_accepted": len(calibration.accepted),
                             "correction_mm": round(1000 * calibration.to_json()["translation_m"], 2),
-                            "correction_deg": calibration.to_json()["rotation_deg"], "depth_scale": scale,
+                            "correction_deg": calibration.to_json()["rotation_deg"],
                             "pose_error": {"before": pose_error(nominal, truth), "after": pose_error(refined, truth)},
                             "before": filter_figures(xyz, arm, scene, nominal, self_filter),
-                            "after": filter_figures(scale * xyz, arm, scene, refined, self_filter)})
+                            "after": filter_figures(xyz, arm, scene, refined, self_filter)})
         print(json.dumps({k: samples[-1][k] for k in ("placement", "refined", "correction_mm", "correction_deg", "pose_error")}),
               *(f"{s['observation']}: arm left {_share(s['before'], 'arm'):.1%} -> {_share(s['after'], 'arm'):.1%}"
                 for s in samples[-2:]), flush=True)
@@ -175,15 +174,15 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.report.records import record_from_samples
 
     started = time.time()
-    samples = measure(args.placements, args.render_path, args.fit_depth_scale)
+    samples = measure(args.placements, args.render_path)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "samples.jsonl").write_text("".join(json.dumps(s, sort_keys=True) + "\n" for s in samples))
     table = "\n".join(summary_table(samples))
     (args.out / "summary.md").write_text(table + "\n")
     print(table)
     if args.record:
-        command = (f"actaim2 bench standin-self-filter --placements {args.placements} --render-path {args.render_path}"
-                   + (" --fit-depth-scale" if args.fit_depth_scale else "") + f" --record {args.record}")
+        command = (f"actaim2 bench standin-self-filter --placements {args.placements} --render-path {args.render_path} "
+                   f"--record {args.record}")
         meta = {"kind": "self_filter", "command": command, "checkpoints": {}, "samples": len(samples),
                 "seconds": round(time.time() - started), "workers": 1, "load_average": round(os.getloadavg()[0], 1),
                 "machine": machine_description(), "cores": os.cpu_count(), "note": "", "source": str(args.out)}

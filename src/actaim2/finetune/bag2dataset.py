@@ -196,10 +196,7 @@ class EpisodeConverter:
         for name, clouds in episode.observations.items():
             observations[name], stamps[name] = {}, {}
             for camera, cloud in sorted(clouds.items()):
-                calibration = calibrations[camera]
-                T = calibration.T_world_optical
-                if calibration.depth_scale != 1.0:
-                    cloud = dataclasses.replace(cloud, xyz=cloud.xyz * np.float32(calibration.depth_scale))
+                T = calibrations[camera].T_world_optical
                 try:
                     fit = fit_intrinsics(cloud.xyz)
                 except IntrinsicsFitError as exc:

@@ -31,8 +31,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-refine-extrinsic", action="store_true",
                         help="keep /tf_static's camera extrinsics as they are (by default each episode's is refined "
                              "by registering the robot's own surface to its clouds)")
-    parser.add_argument("--fit-depth-scale", action="store_true",
-                        help="with the refinement, also correct a systematic depth scale the fit shows")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -53,7 +51,7 @@ def main(args: argparse.Namespace) -> int:
             return 2
     try:
         config = load_perception_config(args.perception)
-        refinement = None if args.no_refine_extrinsic else RefinementLimits(fit_depth_scale=args.fit_depth_scale)
+        refinement = None if args.no_refine_extrinsic else RefinementLimits()
         summary = bags_to_dataset(args.bags, args.out, config, args.robot, encoder, checkpoint=args.checkpoint,
                                   refinement=refinement)
     except (FileNotFoundError, FileExistsError, ValueError, CheckpointError) as exc:

@@ -20,11 +20,10 @@ A refinement is refused, and the extrinsic kept, when the fit says it cannot be 
 (fitness) or too large a residual (RMSE), or a correction beyond the bound a hand-eye calibration
 can be off by (which ICP reaches only by fitting the arm to something else). The reason is said.
 
-Depth scale (optional, ``fit_depth_scale``): a time-of-flight camera's systematic range error
-scales every point along its ray. After the rigid fit, the scale s minimising the point-to-plane
-residual of s p (camera frame) is estimated; it is applied only when it differs from 1 by more than
-``min_depth_scale_change`` and stays within ``max_depth_scale_change``, and the rigid fit is then
-redone on the scaled cloud.
+A systematic range error (a time-of-flight camera's shift or scale along the rays) is taken up by the
+correction too: at the arm's depth a scale along the rays cannot be told from a camera translation, so
+no separate depth scale is fitted (docs/decisions.md); the refined extrinsic removes the arm where a
+calibrated one would not.
 
 It reads only what a real recording holds: the cloud, its extrinsic, the joint positions at its
 stamp and the robot model; never a simulator's true camera pose.
@@ -61,9 +60,6 @@ class RefinementLimits:
     max_rmse: float = 0.007  # m: their RMS point-to-point distance after the fit (the depth noise is ~5 mm at 1.2 m)
     max_translation: float = 0.03  # m: largest correction of the camera's position accepted
     max_rotation_deg: float = 3.0  # largest correction of its orientation accepted
-    fit_depth_scale: bool = False
-    min_depth_scale_change: float = 0.002  # a scale closer to 1 than this is not applied
-    max_depth_scale_change: float = 0.02  # nor one further than this (a fit error, not the sensor)
 
 
 @dataclass(frozen=True)
@@ -79,13 +75,11 @@ class Refinement:
     fitness: float
     rmse: float  # m
     points: int  # arm points the fit used
-    depth_scale: float = 1.0  # applied to the cloud's points (camera frame) before the extrinsic
 
     def to_json(self) -> dict:
         return {"accepted": self.accepted, "reason": self.reason, "T_world_optical": self.T_world_optical.tolist(),
                 "translation_m": round(self.translation, 6), "rotation_deg": round(self.rotation_deg, 5),
-                "fitness": round(self.fitness, 4), "rmse_m": round(self.rmse, 6), "points": self.points,
-                "depth_scale": round(self.depth_scale, 6)}
+                "fitness": round(self.fitness, 4), "rmse_m": round(self.rmse, 6), "points": self.points}
 
 
 @dataclass
@@ -169,22 +163,6 @@ def _icp(source: o3d.geometry.PointCloud, target: o3d.geometry.PointCloud, limit
     return result
 
 
-def _depth_scale(points_camera: np.ndarray, T_world_optical: np.ndarray, target_points: np.ndarray,
-                 target_normals: np.ndarray, tree: cKDTree, distance: float) -> float | None:
-    """The scale s minimising sum (n . (T s p - m))^2 over the points p (camera frame) whose nearest surface
-    point m (normal n) lies within ``distance`` of T p; None with too few such points."""
-    R, t = T_world_optical[:3, :3], T_world_optical[:3, 3]
-    world = points_camera @ R.T + t
-    gap, nearest = tree.query(world, distance_upper_bound=distance)
-    near = np.isfinite(gap)
-    if near.sum() < 50:
-        return None
-    n, m = target_normals[nearest[near]], target_points[nearest[near]]
-    a = np.einsum("ij,ij->i", n, points_camera[near] @ R.T)  # n . R p
-    b = np.einsum("ij,ij->i", n, m - t)  # n . (m - t)
-    return float(a @ b / (a @ a))
-
-
 def front_pixels(xyz: np.ndarray, jump: float = EDGE_JUMP) -> np.ndarray:
     """(H, W) True where an organized cloud's pixel returned and no 4-neighbour lies nearer than it by more than
     ``jump`` times its depth: surfaces with their front silhouettes, without what a foreground edge leaves behind
@@ -201,8 +179,8 @@ def smoothed(xyz: np.ndarray, radius: int = SMOOTHING_RADIUS, jump: float = EDGE
     (2 radius + 1)^2 window on the same surface (depth within ``jump`` times its own).
 
     Why: the range noise (about 5 mm at 1.2 m) scatters points along the rays, across the arm's round links
-    at a slant to their surface, which biases the fit by millimetres (measured: 5.6 mm / 0.25 deg with the
-    noise alone); averaging 25 pixels divides it by about five while leaving surfaces apart."""
+    at a slant to their surface, which biases the fit by millimetres (docs/decisions.md); averaging 25 pixels
+    divides the noise by five while leaving surfaces apart."""
     z = np.where(np.isfinite(xyz).all(axis=-1), xyz[..., 2], np.nan)
     h, w = z.shape
     padded = np.pad(z, radius, constant_values=np.nan)
@@ -222,13 +200,11 @@ def refine_extrinsic(xyz: np.ndarray, T_world_optical: np.ndarray, surface: tupl
                      limits: RefinementLimits = RefinementLimits()) -> Refinement:
     """Refine ``T_world_optical`` by registering the robot's posed ``surface`` (points, normals; world frame,
     :meth:`RobotSurface.posed` at the cloud's stamp) to the organized cloud ``xyz`` ((H, W, 3) camera frame,
-    NaN = no return; its :func:`front_pixels` alone, :func:`smoothed`); a refused :class:`Refinement` (with the reason) keeps the
-    given extrinsic."""
+    NaN = no return; its :func:`front_pixels` alone, :func:`smoothed`); a refused :class:`Refinement` (with the
+    reason) keeps the given extrinsic."""
     target_points, target_normals = surface
     points = smoothed(np.asarray(xyz, dtype=float))[front_pixels(xyz)]
-    tree = cKDTree(target_points)
-    world = transform_points(T_world_optical, points)
-    gap, _ = tree.query(world, distance_upper_bound=limits.crop)
+    gap, _ = cKDTree(target_points).query(transform_points(T_world_optical, points), distance_upper_bound=limits.crop)
     arm = points[np.isfinite(gap)]
 
     def refused(reason: str, translation: float = 0.0, rotation: float = 0.0, fitness: float = 0.0,
@@ -239,14 +215,8 @@ def refine_extrinsic(xyz: np.ndarray, T_world_optical: np.ndarray, surface: tupl
     if len(arm) < limits.min_points:
         return refused(f"{len(arm)} cloud points within {limits.crop * 100:.0f} cm of the robot, fewer than "
                        f"{limits.min_points}: too little of the arm in view")
-    target = _cloud(target_points, target_normals)
-    scale, T = 1.0, np.asarray(T_world_optical, float)
-    result = _icp(_cloud(transform_points(T, arm)), target, limits, np.eye(4))
-    if limits.fit_depth_scale:
-        estimate = _depth_scale(arm, result.transformation @ T, target_points, target_normals, tree, limits.distances[-1])
-        if estimate is not None and limits.min_depth_scale_change <= abs(estimate - 1.0) <= limits.max_depth_scale_change:
-            scale = estimate
-            result = _icp(_cloud(transform_points(T, scale * arm)), target, limits, result.transformation)
+    T = np.asarray(T_world_optical, float)
+    result = _icp(_cloud(transform_points(T, arm)), _cloud(target_points, target_normals), limits, np.eye(4))
     correction = np.asarray(result.transformation)
     refined = correction @ T
     translation, rotation = _camera_motion(T, refined)
@@ -260,7 +230,7 @@ def refine_extrinsic(xyz: np.ndarray, T_world_optical: np.ndarray, surface: tupl
         return refused(f"correction {translation * 1000:.1f} mm / {rotation:.2f} deg beyond the bound "
                        f"{limits.max_translation * 1000:.0f} mm / {limits.max_rotation_deg:.1f} deg", **fit)
     return Refinement(True, "", refined, correction, translation, rotation, float(result.fitness),
-                      float(result.inlier_rmse), len(arm), scale)
+                      float(result.inlier_rmse), len(arm))
 
 
 class ExtrinsicRefiner:
@@ -303,14 +273,8 @@ class EpisodeCalibration:
         T[:3, 3] = np.mean([f.T_world_optical[:3, 3] for f in accepted], axis=0)
         return T
 
-    @property
-    def depth_scale(self) -> float:
-        accepted = self.accepted
-        return float(np.mean([f.depth_scale for f in accepted])) if accepted else 1.0
-
     def to_json(self) -> dict:
         translation, rotation = _camera_motion(self.nominal, self.T_world_optical)
         return {"refined": bool(self.accepted), "T_world_optical": self.T_world_optical.tolist(),
                 "nominal_T_world_optical": self.nominal.tolist(), "translation_m": round(translation, 6),
-                "rotation_deg": round(rotation, 5), "depth_scale": round(self.depth_scale, 6),
-                "fits": [f.to_json() for f in self.fits]}
+                "rotation_deg": round(rotation, 5), "fits": [f.to_json() for f in self.fits]}
