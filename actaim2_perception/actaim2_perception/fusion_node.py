@@ -1,7 +1,9 @@
 """fusion_node: camera clouds in, /fused_points, /ortho_views and /ortho_views/preview out.
 
 A thin adapter over ``actaim2.perception``: it synchronises the cloud topics, looks up their
-extrinsics (/tf_static or a calibration YAML), keeps a short history of /joint_states so the
+extrinsics (/tf_static or a calibration YAML; with ``refine_extrinsic``, corrected by registering the
+robot itself to each camera's cloud every ``refine_extrinsic_period``, the last accepted correction
+kept), keeps a short history of /joint_states so the
 self-filter poses the robot as it stood at each cloud's stamp (``actaim2.perception.joint_history``),
 and publishes what ``Perception.process`` returns. Bad input (empty or all-NaN
 clouds, missing fields, unknown frames, stamps too far apart, nothing inside the workspace) is
@@ -30,6 +32,7 @@ from sensor_msgs.msg import Image, JointState, PointCloud2
 from actaim2.perception.calibration import load_calibration
 from actaim2.perception.cloud_codec import CloudFormatError
 from actaim2.perception.config import load_perception_config
+from actaim2.perception.extrinsic_refinement import ExtrinsicRefiner, RobotSurface
 from actaim2.perception.fusion import CameraCloud
 from actaim2.perception.joint_history import (
     DEFAULT_HISTORY,
@@ -84,6 +87,12 @@ PARAMETERS = {
             "trained on different ones (policy_node's predictor_views_topic); empty = not published",
     ),
     "torch_threads": (1, "CPU threads for fusion and rendering; 1 avoids OpenMP spin contention on small machines"),
+    "refine_extrinsic": (
+        False, "refine each camera's extrinsic by registering the robot's own surface (posed at the cloud's stamp) to "
+               "its organized cloud, bounded and refused when the fit is poor (actaim2.perception.extrinsic_refinement): "
+               "for a single-view rig with a hand-eye calibration; off for the calibrated ring5 rig",
+    ),
+    "refine_extrinsic_period": (10.0, "s between two refinements of a camera's extrinsic (the camera is fixed)"),
 }
 
 
@@ -115,6 +124,10 @@ class FusionNode(Node):
         self._remove_robot_fused = bool(p["remove_robot_fused"])
         self._alternate = (config.replace(remove_robot_views=not config.remove_robot_views)
                            if p["alternate_views_topic"] else None)
+        self._refiner = ExtrinsicRefiner(RobotSurface(load_robot_spec(p["robot"]))) if p["refine_extrinsic"] else None
+        self._refine_period = float(p["refine_extrinsic_period"])
+        self._corrections: dict[str, np.ndarray] = {}  # frame -> accepted world-frame correction of its extrinsic
+        self._next_refinement: dict[str, float] = {}  # frame -> monotonic time of its next refinement
         needs_robot = self._remove_robot_fused or config.remove_robot_views or bool(self._alternate)
         self_filter = RobotSelfFilter(load_robot_spec(p["robot"]), config.self_filter_margin) if needs_robot else None
         self._perception = Perception(config, self_filter)
@@ -149,13 +162,14 @@ class FusionNode(Node):
         self._preview_pub = self.create_publisher(Image, "/ortho_views/preview", qos_profile_sensor_data)
         for index, topic in enumerate(self._topics):
             self.create_subscription(PointCloud2, topic, partial(self._on_cloud, index), qos_profile_sensor_data)
-        if needs_robot:
+        if needs_robot or self._refiner is not None:
             self.create_subscription(JointState, p["joint_states_topic"], self._on_joint_state, 10)
         self._worker.start()
         self.get_logger().info(
             f"fusing {self._topics} into '{self._world}' with perception configuration {config.rig} (digest {self._digest}: "
             f"cube {list(config.center)} +- {config.half_extent} m, {config.resolution} px views), extrinsics from "
-            f"{p['calibration_file'] or '/tf_static'}; robot-filtered outputs waiting for {p['joint_states_topic']}: "
+            f"{p['calibration_file'] or '/tf_static'}{' refined from the robot' if self._refiner else ''}; "
+            f"robot-filtered outputs waiting for {p['joint_states_topic']}: "
             f"{self._waiting or 'none'}"
         )
 
@@ -221,12 +235,44 @@ class FusionNode(Node):
         except UnknownFrameError as exc:
             self._report(f"frame:{topic}", f"{topic}: unknown frame '{msg.header.frame_id}': {exc}")
             return None
-        return CameraCloud(cloud.xyz, cloud.rgb, T)
+        return CameraCloud(cloud.xyz, cloud.rgb, self._corrections.get(msg.header.frame_id, np.eye(4)) @ T)
+
+    def _refine(self, msgs: list[PointCloud2], clouds: list[CameraCloud]) -> list[CameraCloud]:
+        """The clouds with the extrinsics of those due for a refinement refined from the robot in them; a refused
+        fit keeps the last accepted correction (reason logged)."""
+        now, out = time.monotonic(), []
+        for topic, msg, cloud in zip(self._topics, msgs, clouds):
+            frame = msg.header.frame_id
+            if now < self._next_refinement.get(frame, -np.inf):
+                out.append(cloud)
+                continue
+            self._next_refinement[frame] = now + self._refine_period
+            if msg.height <= 1:
+                self._report(f"refine:{topic}", f"{topic}: an unorganized cloud: its extrinsic is not refined")
+                out.append(cloud)
+                continue
+            joints = self._joint_positions([stamp_ns(msg.header.stamp)], "the extrinsic is not refined")
+            if joints is None:
+                out.append(cloud)
+                continue
+            nominal = np.linalg.inv(self._corrections.get(frame, np.eye(4))) @ cloud.T_world_cloud
+            fit = self._refiner.refine(cloud.xyz.reshape(msg.height, msg.width, 3), nominal, joints[0])
+            if fit.accepted:
+                self._corrections[frame] = fit.correction
+                self.get_logger().info(f"{topic}: extrinsic refined from the robot by {fit.translation * 1000:.1f} mm / "
+                                       f"{fit.rotation_deg:.2f} deg (fitness {fit.fitness:.2f}, RMSE {fit.rmse * 1000:.1f} mm)",
+                                       throttle_duration_sec=60.0)
+            else:
+                self._report(f"refine:{topic}", f"{topic}: extrinsic refinement refused: {fit.reason}; the last one kept")
+            out.append(CameraCloud(cloud.xyz, cloud.rgb, self._corrections.get(frame, np.eye(4)) @ nominal))
+        return out
 
     def _process(self, msgs: list[PointCloud2]) -> None:
         clouds = [self._decode(topic, msg) for topic, msg in zip(self._topics, msgs)]
         if any(c is None for c in clouds):
             return
+        if self._refiner is not None:
+            clouds = self._refine(msgs, clouds)
         try:
             fused = self._perception.fuse(clouds)
         except EmptyObservationError as exc:
@@ -249,18 +295,25 @@ class FusionNode(Node):
         if self._preview_pub.get_subscription_count() and self._has_preview:
             self._preview_pub.publish(self._preview_msg(views, stamp))
 
-    def _pose_robot_at(self, msgs: list[PointCloud2]) -> bool:
-        """Pose the self-filter's robot at each distinct cloud stamp of the set; False (reason
-        logged) when the joint states there are unknown."""
-        stamps = sorted({stamp_ns(m.header.stamp) for m in msgs})
+    def _joint_positions(self, stamps: list[int], consequence: str) -> list[dict[str, float]] | None:
+        """The joint positions at each of the sorted ``stamps``; None (reason and ``consequence`` logged) when
+        they are unknown."""
         deadline = time.monotonic() + self._joint_wait
         try:
             with self._joint_arrived:
                 while not self._joint_history.covers(stamps[-1]) and (left := deadline - time.monotonic()) > 0:
                     self._joint_arrived.wait(left)  # the JointState just after the cloud is usually on its way
-                configurations = [self._joint_history.at(stamp) for stamp in stamps]
+                return [self._joint_history.at(stamp) for stamp in stamps]
         except JointStateUnavailable as exc:
-            self._report("joint_states:unknown", f"{', '.join(self._waiting)} wait: the robot cannot be removed: {exc}")
+            self._report("joint_states:unknown", f"{consequence}: {exc}")
+            return None
+
+    def _pose_robot_at(self, msgs: list[PointCloud2]) -> bool:
+        """Pose the self-filter's robot at each distinct cloud stamp of the set; False (reason
+        logged) when the joint states there are unknown."""
+        stamps = sorted({stamp_ns(m.header.stamp) for m in msgs})
+        configurations = self._joint_positions(stamps, f"{', '.join(self._waiting)} wait: the robot cannot be removed")
+        if configurations is None:
             return False
         self._perception.self_filter.set_configurations(configurations)
         return True

@@ -9,8 +9,10 @@ Start-up: load and check the checkpoint against the serving perception configura
 models up, then create the services and log "policy_node ready", so a client that found the
 services gets answers at full speed. A checkpoint that cannot be loaded does not stop the node:
 every request is answered ``success=false`` with "checkpoint failed to load: <why>", as every
-other bad request (wrong embedding length, NaN, unknown cluster or phase, no views yet, views
-older than ``not_before``) is answered with its reason while the node keeps serving.
+other bad request (wrong embedding length, NaN, unknown cluster, mode label or phase, a mode label
+that disagrees with the requested cluster, no views yet, views older than ``not_before``) is
+answered with its reason while the node keeps serving. A ``mode_label`` is served by the cluster
+the checkpoint's fine-tuning mapped it to (``PolicyModel.mode_labels``).
 
 Threads: views arrive in their own callback group, so receiving a 2.6 MB message never waits
 for an inference, and the two services share one group (one inference at a time).
@@ -42,6 +44,7 @@ from actaim2.policy.requests import (
     check_embedding,
     check_fresh,
     check_phase,
+    resolve_mode_label,
 )
 from actaim2.policy.views import Views, accept_views
 from actaim2_ros.keypose import keypose_msg
@@ -170,8 +173,9 @@ class PolicyNode(Node):
         try:
             model = self._require_model()
             check_cluster(request.cluster, model.clusters)
+            cluster = resolve_mode_label(request.mode_label, request.cluster, model.mode_labels)
             views = self._views_for("selector")
-            sample = model.sample_mode(views, request.cluster, request.seed, self._serving.noise_scale)
+            sample = model.sample_mode(views, cluster, request.seed, self._serving.noise_scale)
         except RequestError as exc:
             return self._refuse(response, str(exc))
         except Exception as exc:  # noqa: BLE001 - answered and logged: the node must keep serving
@@ -182,7 +186,8 @@ class PolicyNode(Node):
         response.embedding = sample.eps.tolist()
         response.cluster_probabilities = sample.probabilities.tolist()
         response.observation_stamp = stamp_msg(views.stamp_ns)
-        self._publish_mode(views.stamp_ns, sample.cluster, sample.eps)
+        labels = {c: label for label, c in model.mode_labels.items()}
+        self._publish_mode(views.stamp_ns, sample.cluster, sample.eps, labels.get(sample.cluster, ""))
         return response
 
     def _on_predict_keypose(self, request: PredictKeypose.Request,
@@ -238,8 +243,8 @@ class PolicyNode(Node):
         msg.data = array.array("f", probabilities.astype(np.float32).tobytes())
         self._heatmaps_pub.publish(msg)
 
-    def _publish_mode(self, stamp: int, cluster: int, eps: np.ndarray) -> None:
-        msg = InteractionMode(cluster=int(cluster), embedding=eps.astype(np.float32).tolist())
+    def _publish_mode(self, stamp: int, cluster: int, eps: np.ndarray, label: str = "") -> None:
+        msg = InteractionMode(cluster=int(cluster), embedding=eps.astype(np.float32).tolist(), label=label)
         msg.header.stamp = stamp_msg(stamp)
         msg.header.frame_id = "world"
         self._mode_pub.publish(msg)

@@ -19,6 +19,8 @@ COMMANDS: dict[tuple[str, ...], tuple[str, str]] = {
     ("bench", "models"): ("actaim2.bench.models_cli", "selector sample and predictor latency, training step, parameters"),
     ("bench", "throughput"): ("actaim2.bench.throughput",
                               "where evaluation samples' and collection trajectories' time goes"),
+    ("bench", "standin-self-filter"): ("actaim2.bench.standin_self_filter",
+                                       "arm left in the stand-in's O_init / O_final by the self-filter, nominal vs refined extrinsic"),
     ("bench", "services"): ("actaim2.bench.services", "/sample_mode and /predict_keypose round trips, policy_node RSS, episode wall time"),
     ("expert",): ("actaim2.rollout.expert_eval", "scripted expert success per category (proves the objects are manipulable)"),
     ("render",): ("actaim2.perception.render_cli", "render a bag or saved cloud into orthographic PNG views"),

@@ -112,6 +112,10 @@ def test_mode_clusters_come_from_the_lineage_only_for_its_own_parent():
         mode_clusters("after", lineage, "any", 2, {"pull": 5})
     with pytest.raises(ValueError, match="give --push-cluster"):
         mode_clusters("before", None, "any", 2, {"pull": 0})
+    # fine-tuned by mode label: the map it was trained with, the one /sample_mode serves labels by
+    labelled = {**lineage, "mode_labels": {"label_cluster": {"push": 1, "pull": 0}}}
+    assert mode_clusters("after", labelled, "any", 2, {}) == ({"push": 1, "pull": 0}, "push: lineage.finetune.mode_labels.label_cluster; "
+                                                                                         "pull: lineage.finetune.mode_labels.label_cluster")
 
 
 def test_a_placement_is_one_seed_for_its_states_clusters_and_checkpoints():

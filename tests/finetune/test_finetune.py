@@ -14,8 +14,8 @@ from actaim2 import cli
 from actaim2.artifact import checkpoint
 from actaim2.data.labelling import EMBEDDINGS_FILE, encoder_digest
 from actaim2.data.storage import dataset_digest
-from actaim2.finetune.clusters import cluster_table, format_table
-from actaim2.finetune.finetune import FinetuneError, check_encoder
+from actaim2.finetune.clusters import cluster_table, format_table, label_assignment, mode_accuracy
+from actaim2.finetune.finetune import FinetuneConfig, FinetuneError, check_encoder, finetune
 from actaim2.finetune.heldout import heldout_rows
 from actaim2.models.obs_encoder import ObsEncoderConfig
 from actaim2.models.selector_base import SelectorConfig
@@ -128,3 +128,47 @@ def test_cluster_table_names_each_labels_majority_cluster():
     assert table["by_label"] == {"push": [0, 0, 2, 0], "pull": [1, 1, 0, 0], "<none>": [0, 0, 0, 1]}
     assert table["label_cluster"]["push"] == 2 and table["label_cluster_share"]["push"] == 1.0
     assert "| push | 0 | 0 | 2* | 0 | c2 (100%) |" in format_table(table)
+
+
+def test_fine_tuning_by_mode_label_gives_each_label_a_cluster_of_its_own(converted, parent, tmp_path):
+    from actaim2.policy.inference import PolicyModel
+
+    stem, config = parent
+    report = finetune(stem, converted.dataset, tmp_path / "ft", FinetuneConfig(epochs=60, lr=1e-3, heldout_fraction=0.25,
+                                                                               device="cpu"), show_progress=False)
+    modes = report["mode_labels"]
+    label_cluster = modes["label_cluster"]
+    assert sorted(label_cluster) == ["pull", "push"] and label_cluster["pull"] != label_cluster["push"]
+    # after fine-tuning every training demonstration's posterior picks its label's cluster, so labels share none
+    heldout = set(report["heldout"])
+    for demo in report["after"]["clusters"]["demonstrations"]:
+        if demo["id"] not in heldout:
+            assert demo["cluster"] == label_cluster[demo["label"]], demo
+    assert report["after"]["clusters"]["label_cluster"] == label_cluster
+    accuracy = modes["heldout_accuracy"]["after"]
+    assert accuracy["demonstrations"] == 2 and set(accuracy["by_label"]) == {"pull", "push"}
+    # the map travels in the checkpoint's JSON, where policy_node serves mode labels from
+    assert PolicyModel.load(tmp_path / "ft" / "policy", config, "cpu").mode_labels == label_cluster
+
+
+def test_label_free_fine_tuning_infers_every_cluster(converted, parent, tmp_path):
+    stem, _ = parent
+    report = finetune(stem, converted.dataset, tmp_path / "ft", FinetuneConfig(epochs=2, lr=1e-3, device="cpu",
+                                                                               mode_labels=False), show_progress=False)
+    assert report["mode_labels"]["label_cluster"] == {} and "not asked" in report["mode_labels"]["note"]
+    assert report["mode_labels"]["heldout_accuracy"] == {"before": None, "after": None}
+    assert report["after"]["joint"]["train"]["loss"] is not None
+
+
+def test_two_labels_favouring_one_cluster_are_given_different_clusters():
+    # both labels' demonstrations sit in cluster 2; pull's second choice is cluster 0
+    probabilities = np.array([[0.0, 0.1, 0.9, 0.0], [0.1, 0.0, 0.9, 0.0], [0.3, 0.0, 0.7, 0.0], [0.3, 0.1, 0.6, 0.0],
+                              [0.25, 0.25, 0.25, 0.25]])
+    labels = ["push", "push", "pull", "pull", ""]
+    assert label_assignment(probabilities, labels) == {"push": 2, "pull": 0}
+    assert label_assignment(probabilities, [""] * 5) == {}
+    with pytest.raises(ValueError, match="5 mode labels .* but the selector has 4 clusters"):
+        label_assignment(probabilities, ["a", "b", "c", "d", "e"])
+    accuracy = mode_accuracy(labels, np.array([2, 1, 0, 2, 3]), {"push": 2, "pull": 0})
+    assert (accuracy["correct"], accuracy["demonstrations"]) == (2, 4)
+    assert accuracy["by_label"]["pull"] == {"cluster": 0, "demonstrations": 2, "correct": 1, "accuracy": 0.5}

@@ -3,7 +3,8 @@ its own (started with `ros2 run`), views published here as fusion_node publishes
 
 Four nodes run side by side (services remapped apart): the tiny checkpoint (with two fallback
 rotations per keypose); the same with a
-predictor trained on robot-visible views (two views topics) and mode guidance; a checkpoint that does not exist;
+predictor trained on robot-visible views (two views topics), mode guidance and two operator mode labels mapped
+to clusters (as fine-tuning on labelled demonstrations writes them); a checkpoint that does not exist;
 one trained under another perception configuration. Every bad request gets success=false with
 the reason, and each node keeps serving.
 """
@@ -21,6 +22,7 @@ from harness import NodeProcess, wait_for
 from tiny_policy import TARGETS
 
 SERVICES = ("/sample_mode", "/predict_keypose", "/interaction_mode")
+LABEL_CLUSTER = {"push": 1, "pull": 3}  # the split checkpoint's mode labels
 
 
 def start_policy(log_dir: Path, name: str, params: dict) -> NodeProcess:
@@ -40,6 +42,7 @@ def nodes(tiny_checkpoint, tmp_path_factory):
         shutil.copy(tiny_checkpoint.stem.with_suffix(suffix), split / f"policy{suffix}")
     meta = json.loads((split / "policy.json").read_text())
     meta["robot_filter"] = {"selector": True, "predictor": False}
+    meta.setdefault("lineage", {})["finetune"] = {"mode_labels": {"label_cluster": LABEL_CLUSTER}}
     (split / "policy.json").write_text(json.dumps(meta))
     base = {"checkpoint": str(tiny_checkpoint.stem), "perception_config": str(tiny_checkpoint.perception_yaml)}
     started = {
@@ -94,10 +97,10 @@ class Client:
         assert done.wait(30.0), "no answer"
         return future.result()
 
-    def sample_mode(self, cluster: int = -1, seed: int = 0):
+    def sample_mode(self, cluster: int = -1, seed: int = 0, mode_label: str = ""):
         from actaim2_msgs.srv import SampleMode
 
-        return self._call(self.sample, SampleMode.Request(cluster=cluster, seed=seed))
+        return self._call(self.sample, SampleMode.Request(cluster=cluster, seed=seed, mode_label=mode_label))
 
     def predict_keypose(self, embedding, phase: int = 0, gripper_closed: bool = False, not_before: float = 0.0):
         from actaim2_msgs.srv import PredictKeypose
@@ -166,6 +169,7 @@ def test_every_bad_request_is_answered_with_its_reason_and_the_node_keeps_servin
         "unknown phase 9: expected one of 0 (INIT)": client.predict_keypose(eps, phase=9),
         "unknown cluster 4: the mode selector has 4 clusters (0..3)": client.sample_mode(cluster=4),
         "unknown cluster -5": client.sample_mode(cluster=-5),
+        "unknown mode label 'pull': it maps no mode labels": client.sample_mode(mode_label="pull"),
         "stale observation: the latest views are stamped 10.000 s, before not_before 10.500 s":
             client.predict_keypose(eps, not_before=10.5),
     }
@@ -227,3 +231,24 @@ def test_selector_and_predictor_each_get_views_with_their_robot_filter_setting(r
     assert wait_for(lambda: "were refused" in client.predict_keypose(np.zeros(20)).message, 20.0)
     assert with_robot.digest() in client.predict_keypose(np.zeros(20)).message
     assert client.sample_mode().success
+
+
+def test_sample_mode_by_mode_label_serves_the_labels_cluster_and_refuses_unknown_or_disagreeing_labels(ros_node, nodes,
+                                                                                                       tiny_checkpoint):
+    client = Client(ros_node, prefix="/split", views_topic="/split/views")
+    client.publish(tiny_checkpoint.views[0], tiny_checkpoint.config, stamp=30.0)
+    assert wait_for(lambda: client.sample_mode(mode_label="pull").success, 20.0)
+    for label, cluster in LABEL_CLUSTER.items():
+        by_label, by_cluster = client.sample_mode(seed=4, mode_label=label), client.sample_mode(cluster=cluster, seed=4)
+        assert by_label.success and by_label.cluster == cluster, by_label.message
+        assert list(by_label.embedding) == list(by_cluster.embedding)  # the same draw as asking for its cluster
+        assert client.sample_mode(cluster=cluster, seed=4, mode_label=label).success  # agreeing: answered
+        # /interaction_mode names the label of the cluster in use
+        assert wait_for(lambda: any(m.cluster == cluster and m.label == label for m in client.modes), 10.0)
+    refusals = {
+        "unknown mode label 'open': it maps pull, push": client.sample_mode(mode_label="open"),
+        "mode label 'push' is cluster 1, the request asks for cluster 3": client.sample_mode(cluster=3, mode_label="push"),
+    }
+    for reason, answer in refusals.items():
+        assert not answer.success and reason in answer.message, (reason, answer.message)
+    assert client.sample_mode(mode_label="push").success and nodes["split"].alive()

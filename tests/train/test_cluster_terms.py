@@ -1,6 +1,7 @@
 """The CGMVAE's cluster-usage terms (ElboWeights.cluster_balance, cluster_confidence, cluster_coverage): the imbalance
 is 0 for a batch spread equally over the K clusters and log K for one cluster; the coverage scores each eps against
-its nearest cluster centre, a fixed hypothesis per cluster; the selector loss adds exactly the weighted terms."""
+its nearest cluster centre, a fixed hypothesis per cluster; the selector loss adds exactly the weighted terms. Known
+clusters (a demonstration's mode label) replace q(c) in the ELBO and add -log q(c*) of the analytic posterior."""
 from __future__ import annotations
 
 import dataclasses
@@ -11,11 +12,13 @@ import pytest
 import torch
 
 from actaim2.artifact.checkpoint import perception_record
+from actaim2.models.selector import with_known_clusters
 from actaim2.train.distributed import init_distributed
 from actaim2.train.elbo import (
     COVERAGE_RELAXATION,
     cluster_coverage,
     cluster_imbalance,
+    known_cluster_loss,
     selector_loss,
 )
 from actaim2.train.loop import Trainer
@@ -103,3 +106,27 @@ def test_the_selector_condition_object_feeds_another_trajectorys_o_init_of_the_s
     assert all((a == rows).all() for a in asked)
     with pytest.raises(ValueError, match="selector_condition"):
         dataclasses.replace(TINY, selector_condition="scene")
+
+
+def test_known_clusters_replace_the_posterior_and_score_it(tmp_path):
+    log_qc = torch.log_softmax(torch.tensor([[0.0, 1.0, 2.0], [2.0, 0.0, 0.0]]), dim=-1)
+    known = torch.tensor([0, -1])
+    replaced = with_known_clusters(log_qc, known)
+    assert torch.exp(replaced[0]).tolist() == pytest.approx([1.0, 0.0, 0.0], abs=1e-9)
+    assert torch.equal(replaced[1], log_qc[1])  # unknown: the posterior
+    assert known_cluster_loss(log_qc, known).tolist() == pytest.approx([-log_qc[0, 0].item(), 0.0])
+    # through the selector loss: the term is weighted in, and the clusters of the batch change the ELBO
+    data, _ = make_dataset(4, resolution=32, seed=1)
+    trainer = Trainer(TINY, data, None, PLACEMENT, perception_record({"synthetic": 1}), "synthetic", tmp_path,
+                      init_distributed("cpu"), show_progress=False)
+    views, z = data.selector_batch(np.arange(4))
+    eps = trainer.selector.standardise(z)
+    noise = trainer.selector.draw_noise(4, torch.Generator().manual_seed(7))
+    clusters = torch.tensor([0, 1, -1, 1])
+    free, _, _ = selector_loss(trainer.selector, views, eps, TINY.elbo, noise)
+    off, _, metrics = selector_loss(trainer.selector, views, eps, dataclasses.replace(TINY.elbo, known_cluster=0.0), noise,
+                                    clusters=clusters)
+    on, _, _ = selector_loss(trainer.selector, views, eps, dataclasses.replace(TINY.elbo, known_cluster=3.0), noise,
+                             clusters=clusters)
+    assert metrics["known_cluster"] > 0.0 and off.item() != pytest.approx(free.item())
+    assert on.item() == pytest.approx(off.item() + 3.0 * metrics["known_cluster"], rel=1e-4)

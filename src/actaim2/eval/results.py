@@ -37,7 +37,7 @@ class RunMismatchError(ValueError):
 
 def check_run(out: Path, run: dict) -> dict:
     """Merge ``run`` into ``out/run.json``; refuse a different evaluation set, robot, rig, planner, number of
-    fallback keyposes, mode guidance or checkpoint."""
+    fallback keyposes, mode guidance, extrinsic refinement or checkpoint."""
     path = out / RUN_FILE
     if not path.exists():
         out.mkdir(parents=True, exist_ok=True)
@@ -46,9 +46,9 @@ def check_run(out: Path, run: dict) -> dict:
     old = json.loads(path.read_text())
     # a run.json written before the planner option, or before pseudo-clusters were shuffled
     defaults = {"hand_half_turn": False, "pseudo_grouping": "slot mod 8", "keypose_alternatives": 0, "mode_guidance": 0.0,
-                "noise_scale": 1.0, "data_collection_exploration": 0}
+                "noise_scale": 1.0, "data_collection_exploration": 0, "refine_extrinsic": False}
     for field in ("eval_set_version", "robot", "rig", "hand_half_turn", "pseudo_grouping", "keypose_alternatives",
-                  "mode_guidance", "noise_scale", "data_collection_exploration"):
+                  "mode_guidance", "noise_scale", "data_collection_exploration", "refine_extrinsic"):
         recorded = old.get(field, defaults.get(field))
         if recorded != run.get(field, defaults.get(field)):
             flag = {"hand_half_turn": "--hand-half-turn" if recorded else "--no-hand-half-turn",

@@ -31,6 +31,7 @@ from actaim2.eval.methods import PSEUDO_CLUSTERS
 from actaim2.eval.sim_views import ViewMaker, pictures
 from actaim2.eval.tasks import EvalTask
 from actaim2.keypose import Keypose
+from actaim2.perception.extrinsic_refinement import ExtrinsicRefiner
 from actaim2.policy.inference import ROLES, ModeSample, PolicyModel
 from actaim2.policy.views import Views
 from actaim2.robots import RobotSpec
@@ -96,16 +97,17 @@ class ServedPolicy:
     """A policy checkpoint and the view makers of its two models (one when their views agree);
     ``alternatives``: fallback keyposes asked for with each one, ``guidance``: the mode guidance weight
     (both ``PolicyModel.predict_keypose``'s), ``noise_scale``: the spread of each mode draw
-    (``PolicyModel.sample_mode``'s)."""
+    (``PolicyModel.sample_mode``'s); ``refiner``: the view makers refine each picture's extrinsic from the
+    robot (:class:`ViewMaker`)."""
 
     def __init__(self, model: PolicyModel, spec: RobotSpec, alternatives: int = 0, guidance: float = 0.0,
-                 noise_scale: float = DEFAULT_SERVING.noise_scale):
+                 noise_scale: float = DEFAULT_SERVING.noise_scale, refiner: ExtrinsicRefiner | None = None):
         self.model, self.alternatives, self.guidance, self.noise_scale = model, alternatives, guidance, noise_scale
         makers: dict[str, ViewMaker] = {}
         self.makers = {}
         for role in ROLES:
             config = model.views_config(role)
-            self.makers[role] = makers.setdefault(config.digest(), ViewMaker(config, spec))
+            self.makers[role] = makers.setdefault(config.digest(), ViewMaker(config, spec, refiner))
 
     def views(self, role: str, observed: Observation, env: SimEnv) -> Views:
         return Views(0, self.makers[role].views(observed, env))

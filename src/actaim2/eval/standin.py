@@ -96,17 +96,22 @@ def mode_clusters(condition: str, finetune: dict | None, weights_sha256: str | N
                   overrides: dict[str, int | None]) -> tuple[dict[str, int], str]:
     """(mode -> the cluster asked for it, where each came from) for ``condition``.
 
-    ``finetune`` is the fine-tuned checkpoint's ``lineage.finetune``: after fine-tuning its ``after`` cluster table,
-    before it its ``before`` table (the same labelled demonstrations through the parent's selector, so each checkpoint
-    is asked for the cluster its own selector puts the demonstrations in), usable only when the "before" checkpoint
-    is that parent. ``overrides`` (mode -> cluster, None: not given) replace the tables'.
+    ``finetune`` is the fine-tuned checkpoint's ``lineage.finetune``: after fine-tuning the label -> cluster map it
+    was trained with (``mode_labels.label_cluster``, what ``/sample_mode`` serves a mode label by), else its ``after``
+    cluster table; before it its ``before`` table (the same labelled demonstrations through the parent's selector, so
+    each checkpoint is asked for the cluster its own selector puts the demonstrations in), usable only when the
+    "before" checkpoint is that parent. ``overrides`` (mode -> cluster, None: not given) replace the tables'.
     """
     table: dict[str, int] = {}
     why_not = "no fine-tuned checkpoint (--after) with lineage.finetune"
+    source = f"lineage.finetune.{condition}.clusters.label_cluster"
     if finetune is not None:
         parent = (finetune.get("parent") or {}).get("weights_sha256")
+        trained = (finetune.get("mode_labels") or {}).get("label_cluster")
         if condition == "before" and parent != weights_sha256:
             why_not = f"the fine-tuned checkpoint's parent has weights {parent}, the before checkpoint {weights_sha256}"
+        elif condition == "after" and trained:
+            table, source = trained, "lineage.finetune.mode_labels.label_cluster"
         else:
             table = finetune[condition]["clusters"]["label_cluster"]
     chosen, sources = {}, []
@@ -116,7 +121,7 @@ def mode_clusters(condition: str, finetune: dict | None, weights_sha256: str | N
             sources.append(f"{mode}: --{mode}-cluster")
         elif mode in table:
             chosen[mode] = int(table[mode])
-            sources.append(f"{mode}: lineage.finetune.{condition}.clusters.label_cluster")
+            sources.append(f"{mode}: {source}")
         else:
             raise ValueError(f"{condition}: no cluster for {mode} ({why_not if not table else f'no {mode} demonstration in the table'}): "
                              f"give --{mode}-cluster")
@@ -178,4 +183,35 @@ def tables(summaries: dict[str, dict]) -> list[str]:
             asked = f" ({', '.join(row['asked_for'])})" if row and row["asked_for"] else ""
             cells += [_cell(row["moved"]) + asked, f"{row['push']} / {row['pull']}"] if row else ["-", "-"]
         lines.append(f"| c{c} | " + " | ".join(cells) + " |")
+    return lines
+
+
+# -- the self-filter under calibration errors (actaim2 bench standin-self-filter) --------
+
+SHARES = {"arm": ("arm_left", "arm_pixels"), "near": ("near_removed", "near_pixels"),
+          "object": ("near_object_removed", "near_object_pixels")}
+
+
+def share(figures: dict, what: str) -> float:
+    """The share of a figure's pixels: arm left, removed within 5 cm, or the object's removed (SHARES)."""
+    part, whole = SHARES[what]
+    return figures[part] / max(1, figures[whole])
+
+
+def summary_table(samples: list[dict]) -> list[str]:
+    """``actaim2 bench standin-self-filter``'s table. Markdown: per placement and observation, arm pixels left and non-arm pixels removed within 5 cm of the arm
+    (all; the object's), nominal -> refined extrinsic, and the camera pose error; the worst of each last."""
+    lines = ["| placement | drawer, mode | observation | arm pixels | arm left | removed within 5 cm "
+             "| object removed within 5 cm | camera pose error | correction |", "|---" * 9 + "|"]
+    for s in samples:
+        b, a, e = s["before"], s["after"], s["pose_error"]
+        lines.append(f"| {s['placement']} | {s['drawer']}, {s['mode']} | {s['observation']} | {b['arm_pixels']} "
+                     f"| {share(b, 'arm'):.1%} -> {share(a, 'arm'):.1%} | {share(b, 'near'):.1%} -> {share(a, 'near'):.1%} "
+                     f"| {share(b, 'object'):.2%} -> {share(a, 'object'):.2%} ({b['near_object_pixels']}) "
+                     f"| {e['before']['mm']:.1f} mm / {e['before']['deg']:.2f} deg -> {e['after']['mm']:.1f} mm / "
+                     f"{e['after']['deg']:.2f} deg | {s['correction_mm']:.1f} mm / {s['correction_deg']:.2f} deg"
+                     f"{'' if s['refined'] else ' (refused)'} |")
+    worst = {what: " -> ".join(f"{max(share(s[side], what) for s in samples):.{2 if what == 'object' else 1}%}"
+                               for side in ("before", "after")) for what in SHARES}
+    lines.append(f"| worst | | | | {worst['arm']} | {worst['near']} | {worst['object']} | | |")
     return lines

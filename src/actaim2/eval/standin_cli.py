@@ -44,6 +44,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--workers", type=int, default=2, help="worker processes (0 = in this process)")
     parser.add_argument("--render-path", choices=["sapien", "raycast"], help="override the configuration's render path")
     parser.add_argument("--allow-raycast", action="store_true", help="without a Vulkan device, render by ray casting instead of refusing")
+    parser.add_argument("--no-refine-extrinsic", action="store_true",
+                        help="serve views through the rig's nominal extrinsic (by default each picture's is refined from "
+                             "the robot in it before the self-filter, as bag2dataset refines the demonstrations')")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -97,13 +100,15 @@ def main(args: argparse.Namespace) -> int:
         render_path = _render_path(perception, args)
         randomisation = load_randomisation(args.domain_randomisation).to_dict() if args.domain_randomisation else None
         check_run(args.out, {"eval_set_version": EVAL_SET_VERSION, "robot": args.robot, "rig": perception.rig,
+                             "refine_extrinsic": not args.no_refine_extrinsic,
                              "methods": {c: {"weights_sha256": d["weights_sha256"], "domain_randomisation": randomisation}
                                          for c, d in described.items()}})
     except (ValueError, FileNotFoundError, RunMismatchError) as exc:
         print(f"actaim2 eval-standin: {exc}", file=sys.stderr)
         return 2
     setup = WorkerSetup(args.robot, perception.rig, render_path, tuple(perception.center), float(perception.half_extent),
-                        {c: str(s) for c, s in stems.items()}, randomisation=randomisation)
+                        {c: str(s) for c, s in stems.items()}, randomisation=randomisation,
+                        refine_extrinsic=not args.no_refine_extrinsic)
     k = {c: d["clusters"] for c, d in described.items()}
     clusters = {c: sorted(set(asked[c][0].values())) if args.modes_only else list(range(k[c])) for c in stems}
     episodes = plan_episodes(clusters, k, placements)
@@ -129,6 +134,7 @@ def main(args: argparse.Namespace) -> int:
               "protocol": {"object": SHELF.key, "placements": placements, "reset_seeds": placement_seeds(placements),
                            "initial_states": list(STATE_NAMES), "modes": MODES, "robot": args.robot, "rig": perception.rig,
                            "render_path": render_path, "domain_randomisation": randomisation,
+                           "refine_extrinsic": setup.refine_extrinsic,
                            "velocity_scaling": setup.velocity_scaling, "episodes": len(episodes), "in_results": len(records)},
               "conditions": {c: {"checkpoint": described[c], "mode_clusters": asked[c][0], "mode_clusters_from": asked[c][1],
                                  "asked_clusters": clusters[c], **summary_json(summaries[c])} for c in stems},

@@ -36,6 +36,7 @@ class WorkerSetup:
     keypose_alternatives: int = DEFAULT_SERVING.keypose_alternatives  # fallback rotations of each policy keypose (policy rows)
     mode_guidance: float = DEFAULT_SERVING.mode_guidance  # models/mode_guidance.py's weight for every policy keypose (policy rows)
     noise_scale: float = DEFAULT_SERVING.noise_scale  # spread of every policy row's mode draw (PolicyModel.sample_mode)
+    refine_extrinsic: bool = False  # policy rows' views: each picture's extrinsic refined from the robot first (ViewMaker)
 
 
 class EvalWorker:
@@ -72,6 +73,7 @@ class EvalWorker:
         from actaim2.data.random_sampler import RandomSampler, SamplingConfig
         from actaim2.eval.checkpoints import perception_of
         from actaim2.eval.sources import GoalSource, PolicySource, SamplerSource
+        from actaim2.perception.extrinsic_refinement import ExtrinsicRefiner, RobotSurface
         from actaim2.policy.inference import PolicyModel
 
         s, spec = self.setup, self.env.spec
@@ -85,7 +87,8 @@ class EvalWorker:
             from actaim2.data.encoder import ImageEncoder
 
             return GoalSource(model, spec, ImageEncoder.load(s.encoder), s.keypose_alternatives, s.mode_guidance)
-        return PolicySource(model, spec, s.keypose_alternatives, s.mode_guidance, s.noise_scale)
+        refiner = ExtrinsicRefiner(RobotSurface(spec)) if s.refine_extrinsic else None
+        return PolicySource(model, spec, s.keypose_alternatives, s.mode_guidance, s.noise_scale, refiner)
 
     def run(self, task) -> dict:
         """The task's result record (an EvalTask's sample, or a GroundingRun's rewards); {key, error} when

@@ -38,6 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     bags.add_argument("--checkpoint", type=Path, help="the policy to fine-tune (its E is used)")
     bags.add_argument("--perception", default="azure_kinect", help="perception configuration")
     bags.add_argument("--robot", default="kinova_j2s6s200", help="the robot in the bags")
+    bags.add_argument("--no-refine-extrinsic", action="store_true", help="keep /tf_static's camera extrinsics as they are")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -50,7 +51,7 @@ def main(args: argparse.Namespace) -> int:
         dataset = args.out.with_name(args.out.name + ".dataset")
         converted = argparse.Namespace(bags=args.inputs, out=dataset, encoder=args.encoder,
                                        checkpoint=args.checkpoint, perception=args.perception,
-                                       robot=args.robot)
+                                       robot=args.robot, no_refine_extrinsic=args.no_refine_extrinsic)
         if bag2dataset_cli.main(converted) != 0:
             print("actaim2 export-lerobot: the bags could not be converted (above)")
             return 2

@@ -10,6 +10,11 @@ so ``actaim2 train`` / ``actaim2 finetune`` read it as they read simulated data:
   extrinsics of the bag's ``/tf_static``; xyz-only clouds get fusion's grey, as the node sees them;
 * joint positions per observation: ``/joint_states`` interpolated at each cloud's stamp
   (:class:`~actaim2.perception.joint_history.JointStateHistory`);
+* extrinsics: each camera's, refined per episode from the robot itself before anything else
+  (:mod:`actaim2.perception.extrinsic_refinement`: the arm's visual surface posed at each of the
+  episode's clouds registered to them; the accepted fits combined, the ``/tf_static`` one kept when
+  every fit is refused), stored in every picture of the episode and, with each fit, in the trajectory's
+  info (``calibration``); ``refinement=None`` keeps ``/tf_static``'s;
 * O_init and O_final: the first and last cloud sets of the episode with the robot removed by the
   self-filter posed at each cloud's stamp (a real arm cannot be hidden as the simulator hides it:
   its pixels take what the other of the two saw there, else "no return": :func:`fill_robot_pixels`),
@@ -27,6 +32,7 @@ reported and skipped (``bag2dataset.json`` lists what was converted and why the 
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 from dataclasses import dataclass, field
@@ -50,6 +56,12 @@ from actaim2.finetune.bag_episodes import BagEpisode, BagProblem, Cloud, read_ep
 from actaim2.finetune.intrinsics import IntrinsicsFit, IntrinsicsFitError, fit_intrinsics
 from actaim2.geometry import transform_points
 from actaim2.perception.config import PerceptionConfig, capture_part
+from actaim2.perception.extrinsic_refinement import (
+    EpisodeCalibration,
+    ExtrinsicRefiner,
+    RefinementLimits,
+    RobotSurface,
+)
 from actaim2.perception.fusion import NO_COLOUR
 from actaim2.perception.joint_history import JointStateUnavailable
 from actaim2.perception.self_filter import RobotSelfFilter
@@ -94,6 +106,7 @@ class BagReport:
     converted: list[str] = field(default_factory=list)  # trajectory ids
     problems: list[str] = field(default_factory=list)
     intrinsics: list[dict] = field(default_factory=list)  # one fit per converted cloud
+    calibration: dict[str, dict] = field(default_factory=dict)  # trajectory id -> camera -> its extrinsic, why fits were refused
 
 
 def rig_topics(config: PerceptionConfig) -> dict[str, str]:
@@ -149,9 +162,10 @@ def fill_robot_pixels(init: CameraImage, final: CameraImage, removed_init: np.nd
 class EpisodeConverter:
     """Turns :class:`BagEpisode` objects into trajectories and task embeddings."""
 
-    def __init__(self, self_filter: RobotSelfFilter, encoder: ImageEncoder):
+    def __init__(self, self_filter: RobotSelfFilter, encoder: ImageEncoder, refiner: ExtrinsicRefiner | None = None):
         self.self_filter = self_filter
         self.encoder = encoder
+        self.refiner = refiner
         self._robot_joints = {self.self_filter.model.names[i] for i in range(1, self.self_filter.model.njoints)}
 
     def _joints(self, episode: BagEpisode, cloud: Cloud) -> dict[str, float]:
@@ -164,19 +178,39 @@ class EpisodeConverter:
                                  f"{sorted(self._robot_joints)[:8]}: the bag was recorded with another robot")
         return joints
 
+    def _calibrations(self, episode: BagEpisode) -> dict[str, EpisodeCalibration]:
+        """Each camera's extrinsic over the episode: ``/tf_static``'s, refined from its clouds when refining."""
+        by_camera: dict[str, dict[int, Cloud]] = {}
+        for clouds in episode.observations.values():
+            for camera, cloud in clouds.items():
+                by_camera.setdefault(camera, {})[cloud.stamp_ns] = cloud
+        calibrations = {}
+        for camera, clouds in sorted(by_camera.items()):
+            frames = {c.frame_id for c in clouds.values()}
+            try:
+                T = episode.transforms.lookup(WORLD, frames.pop())
+            except UnknownFrameError as exc:
+                raise EpisodeProblem(f"camera {camera}: {exc}") from exc
+            if frames:
+                raise EpisodeProblem(f"camera {camera}: its clouds name more than one frame")
+            calibrations[camera] = EpisodeCalibration(T) if self.refiner is None else self.refiner.calibrate(
+                T, [(c.xyz, self._joints(episode, c)) for _, c in sorted(clouds.items())])
+        return calibrations
+
     def convert(self, episode: BagEpisode, tid: str) -> tuple[Trajectory, np.ndarray, list[dict]]:
         """(trajectory, z, intrinsics fits) of one episode; EpisodeProblem when it cannot be converted."""
         observations: dict[str, Observation] = {}
         joints: dict[str, dict[str, float]] = {}
         fits, stamps = [], {}
         removed: dict[tuple[str, str], np.ndarray] = {}  # (observation, camera) -> robot pixels
+        calibrations = self._calibrations(episode)
         for name, clouds in episode.observations.items():
             observations[name], stamps[name] = {}, {}
             for camera, cloud in sorted(clouds.items()):
+                T = calibrations[camera].T_world_optical
                 try:
                     fit = fit_intrinsics(cloud.xyz)
-                    T = episode.transforms.lookup(WORLD, cloud.frame_id)
-                except (IntrinsicsFitError, UnknownFrameError) as exc:
+                except IntrinsicsFitError as exc:
                     raise EpisodeProblem(f"observation {name}, camera {camera}: {exc}") from exc
                 fits.append({"observation": name, "camera": camera, **fit.to_json()})
                 positions = self._joints(episode, cloud)
@@ -204,7 +238,8 @@ class EpisodeConverter:
             seed=episode.episode, keyposes=episode.keyposes, observations=observations, robot_joints=joints,
             object_state=ObjectState([], np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0)),
             info={"bag": str(episode.bag), "episode": episode.episode, "mode_label": episode.label,
-                  "operator_success": episode.success, "note": episode.note, "cloud_stamps_ns": stamps, "intrinsics": fits},
+                  "operator_success": episode.success, "note": episode.note, "cloud_stamps_ns": stamps, "intrinsics": fits,
+                  "calibration": {camera: c.to_json() for camera, c in calibrations.items()}},
         )
         return trajectory, (init - final).astype(np.float32), fits
 
@@ -221,9 +256,11 @@ def _demonstration(trajectory: Trajectory) -> EncodedTrajectory:
 
 def bags_to_dataset(bags: Sequence[str | Path], out: str | Path, config: PerceptionConfig, robot: str,
                     encoder_path: str | Path, report: Callable[[str], None] = print,
-                    checkpoint: str | Path | None = None) -> dict:
+                    checkpoint: str | Path | None = None,
+                    refinement: RefinementLimits | None = RefinementLimits()) -> dict:
     """Convert every episode of ``bags`` into a new dataset at ``out``; returns the conversion report.
-    With ``checkpoint`` (the policy to fine-tune), an encoder other than its E is refused first."""
+    With ``checkpoint`` (the policy to fine-tune), an encoder other than its E is refused first.
+    ``refinement``: how each episode's extrinsics are refined from the robot (None: ``/tf_static``'s as they are)."""
     from actaim2.robots import load_robot_spec
 
     out = Path(out)
@@ -233,10 +270,13 @@ def bags_to_dataset(bags: Sequence[str | Path], out: str | Path, config: Percept
     if checkpoint is not None:
         check_checkpoint_encoder(checkpoint, encoder_path, digest)
     encoder = ImageEncoder.load(encoder_path)
-    converter = EpisodeConverter(RobotSelfFilter(load_robot_spec(robot), config.self_filter_margin), encoder)
+    spec = load_robot_spec(robot)
+    refiner = None if refinement is None else ExtrinsicRefiner(RobotSurface(spec), refinement)
+    converter = EpisodeConverter(RobotSelfFilter(spec, config.self_filter_margin), encoder, refiner)
     topics = rig_topics(config)
     info = {"rig": config.rig, "perception": capture_part(config), "robot": robot, "source": "bags",
             "bags": [str(b) for b in bags], "cloud_topics": topics,
+            "extrinsic_refinement": None if refinement is None else dataclasses.asdict(refinement),
             "encoder": {"path": str(encoder_path), "digest": digest, "kind": encoder.spec.kind,
                         "input_size": [encoder.spec.height, encoder.spec.width],
                         "checked_against": None if checkpoint is None else str(checkpoint)}}
@@ -265,6 +305,9 @@ def bags_to_dataset(bags: Sequence[str | Path], out: str | Path, config: Percept
                     success[tid] = episode.success
                     bag_report.converted.append(tid)
                     bag_report.intrinsics.extend(fits)
+                    bag_report.calibration[tid] = {camera: {k: v for k, v in c.items() if k != "fits"} | {
+                        "refused": [f["reason"] for f in c["fits"] if not f["accepted"]]}
+                        for camera, c in trajectory.info["calibration"].items()}
             except BagProblem as exc:
                 problem(f"{exc}; bag skipped")
             bar.update(1)
@@ -290,8 +333,12 @@ def _summary(reports: list[BagReport], entries: list[dict]) -> dict:
     labels: dict[str, int] = {}
     for e in entries:
         labels[e["mode_label"] or "<none>"] = labels.get(e["mode_label"] or "<none>", 0) + 1
+    calibrations = [c for r in reports for cameras in r.calibration.values() for c in cameras.values()]
     return {
         "trajectories": len(entries),
+        "extrinsics_refined": {"cameras": len(calibrations), "refined": sum(c["refined"] for c in calibrations),
+                               "largest_correction_mm": max((1000 * c["translation_m"] for c in calibrations), default=None),
+                               "largest_correction_deg": max((c["rotation_deg"] for c in calibrations), default=None)},
         "bags_converted": sum(1 for r in reports if r.converted),
         "bags_with_problems": sum(1 for r in reports if r.problems),
         "mode_labels": labels,

@@ -28,12 +28,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--robot", default="kinova_j2s6s200", help="the robot in the bags (preset or YAML): its self-filter hides it")
     parser.add_argument("--checkpoint", type=Path,
                         help="the policy to fine-tune (stem): refuse --encoder unless it is the E that policy was trained with")
+    parser.add_argument("--no-refine-extrinsic", action="store_true",
+                        help="keep /tf_static's camera extrinsics as they are (by default each episode's is refined "
+                             "by registering the robot's own surface to its clouds)")
 
 
 def main(args: argparse.Namespace) -> int:
     from actaim2.artifact.checkpoint import CheckpointError, encoder_path
     from actaim2.finetune.bag2dataset import bags_to_dataset
     from actaim2.perception.config import load_perception_config
+    from actaim2.perception.extrinsic_refinement import RefinementLimits
 
     encoder = args.encoder
     if encoder is None and args.checkpoint is None:
@@ -47,7 +51,9 @@ def main(args: argparse.Namespace) -> int:
             return 2
     try:
         config = load_perception_config(args.perception)
-        summary = bags_to_dataset(args.bags, args.out, config, args.robot, encoder, checkpoint=args.checkpoint)
+        refinement = None if args.no_refine_extrinsic else RefinementLimits()
+        summary = bags_to_dataset(args.bags, args.out, config, args.robot, encoder, checkpoint=args.checkpoint,
+                                  refinement=refinement)
     except (FileNotFoundError, FileExistsError, ValueError, CheckpointError) as exc:
         print(f"actaim2 bag2dataset: {exc}")
         return 2
@@ -55,5 +61,9 @@ def main(args: argparse.Namespace) -> int:
     print(json.dumps({k: summary[k] for k in ("trajectories", "bags_converted", "bags_with_problems", "mode_labels")}))
     if fits["max"] is not None:
         print(f"intrinsics fitted to every cloud: reprojection residual rms <= {fits['rms_max']:.4f} px, max {fits['max']:.4f} px")
+    refined = summary["extrinsics_refined"]
+    if refinement is not None and refined["cameras"]:
+        print(f"extrinsics refined from the robot: {refined['refined']} of {refined['cameras']} (episode, camera), "
+              f"largest correction {refined['largest_correction_mm']:.1f} mm / {refined['largest_correction_deg']:.2f} deg")
     print(f"wrote {args.out} (report: {args.out / 'bag2dataset.json'})")
     return 0 if summary["trajectories"] else 1

@@ -13,6 +13,12 @@ the phases' length and learning rate, which fine-tuning chooses.
   the loop after every epoch (``history.jsonl``) and here before and after.
 * Clusters: the cluster each labelled demonstration falls into, before and after, by label
   (:mod:`.clusters`).
+* Mode labels (on by default, a CGMVAE selector): each operator label gets a cluster of its own, the one the
+  parent's posterior favours for its training demonstrations (one-to-one, :func:`.clusters.label_assignment`);
+  training treats a labelled demonstration's cluster as known (the selector's ELBO with c observed, and the
+  predictor trained jointly on that selector's eps). The map is ``lineage.finetune.mode_labels.label_cluster``
+  (what ``/sample_mode`` serves a ``mode_label`` by), with the held-out demonstrations' mode accuracy before and
+  after. Without labels (or ``mode_labels=False``) every cluster is inferred, as in pretraining.
 * Encoder E: the task embeddings must come from the parent's E. Its digest is checked against the
   parent's lineage when recorded there, else against the pretraining dataset when it is given
   (whose digest must then be the parent's ``dataset_digest``); otherwise the check is reported as
@@ -39,8 +45,16 @@ from actaim2.artifact import checkpoint
 from actaim2.data.labelling import dataset_encoder, embeddings_encoder_digest
 from actaim2.data.splits import TRAIN
 from actaim2.data.storage import DatasetReader, dataset_digest
-from actaim2.finetune.clusters import assign_clusters, cluster_table
+from actaim2.finetune.clusters import (
+    assign_clusters,
+    cluster_probabilities,
+    cluster_table,
+    known_clusters,
+    label_assignment,
+    mode_accuracy,
+)
 from actaim2.finetune.heldout import heldout_rows
+from actaim2.models.selector import CGMVAE
 from actaim2.models.view_geometry import CubePlacement
 from actaim2.perception.config import PerceptionConfig
 from actaim2.train.config import TrainConfig
@@ -64,6 +78,7 @@ class FinetuneConfig:
     heldout_fraction: float = 0.2  # of each mode label's demonstrations
     seed: int = 0
     device: str = "auto"
+    mode_labels: bool = True  # give each operator mode label a cluster of its own (module docstring)
 
 
 def _sha256(path: Path) -> str:
@@ -120,6 +135,21 @@ def _train_config(meta: dict, config: FinetuneConfig) -> TrainConfig:
     return dataclasses.replace(parent, phases=tuple(config.phases), seed=config.seed, device=config.device, **phases)
 
 
+def label_clusters(selector: torch.nn.Module, data: TrainingData, labels: Sequence[str], rows: np.ndarray,
+                   device: torch.device) -> tuple[dict[str, int], str]:
+    """(label -> cluster, a note) from the demonstrations ``rows`` through ``selector``; an empty map and why
+    when there is nothing to assign."""
+    if not any(labels[i] for i in rows):
+        return {}, "no training demonstration has a mode label: every cluster inferred"
+    if not isinstance(selector, CGMVAE):
+        return {}, f"a {type(selector).__name__} selector has no cluster posterior: mode labels not used"
+    try:
+        return label_assignment(cluster_probabilities(selector, data.subset(rows), device), [labels[i] for i in rows]), \
+            "each label's cluster: the one its training demonstrations' posterior favours under the parent, one-to-one"
+    except ValueError as exc:
+        raise FinetuneError(str(exc)) from exc
+
+
 def finetune(parent: str | Path, dataset: str | Path, out: str | Path, config: FinetuneConfig = FinetuneConfig(),
              command: Sequence[str] = (), pretraining: str | Path | None = None, show_progress: bool = True) -> dict:
     """Fine-tune the checkpoint ``parent`` on ``dataset`` into ``<out>/policy``; returns the report."""
@@ -141,21 +171,33 @@ def finetune(parent: str | Path, dataset: str | Path, out: str | Path, config: F
     data = open_cache(dataset, perception, [TRAIN])
     labels = [reader.by_id[i].get("mode_label", "") for i in data.ids]
     train_rows, val_rows = heldout_rows(data.ids, labels, config.heldout_fraction, config.seed)
+    ctx = init_distributed(config.device)
+    label_cluster, note = {}, "not asked (mode_labels off): every cluster inferred"
+    if config.mode_labels:
+        label_cluster, note = label_clusters(checkpoint.load_policy(parent, record, ctx.device).selector, data, labels,
+                                             train_rows, ctx.device)
+    if label_cluster:
+        data = dataclasses.replace(data, clusters=known_clusters(labels, label_cluster))
     train, val = data.subset(train_rows), data.subset(val_rows)
     trainer = Trainer(_train_config(meta, config), train, val, placement, record, dataset_digest(dataset), out,
-                      init_distributed(config.device), init_from=checkpoint.paths(parent)[1].with_suffix(""),
-                      show_progress=show_progress)
+                      ctx, init_from=checkpoint.paths(parent)[1].with_suffix(""), show_progress=show_progress)
     k = trainer.selector_config.clusters if trainer.selector_config.kind != "cvae" else 0
-    before = {"clusters": cluster_table(data.ids, labels, assign_clusters(trainer.selector, data, trainer.device), k),
+    clusters_before = assign_clusters(trainer.selector, data, trainer.device)
+    before = {"clusters": cluster_table(data.ids, labels, clusters_before, k),
               **{p: {"train": mean_losses(trainer, p, train, config.seed), "val": mean_losses(trainer, p, val, config.seed)}
                  for p in config.phases}}
     trainer.lineage.update(encoder_digest=encoder["encoder_digest"])
     beside = checkpoint.encoder_path(parent)
     trainer.encoder_file = dataset_encoder(dataset) or (beside if encoder["checked"] and beside.is_file() else None)
     results = trainer.run()
-    after = {"clusters": cluster_table(data.ids, labels, assign_clusters(trainer.selector, data, trainer.device), k),
+    clusters_after = assign_clusters(trainer.selector, data, trainer.device)
+    after = {"clusters": cluster_table(data.ids, labels, clusters_after, k),
              **{p: {"train": mean_losses(trainer, p, train, config.seed), "val": mean_losses(trainer, p, val, config.seed)}
                 for p in config.phases}}
+    heldout_labels = [labels[i] for i in val_rows]
+    modes = {"label_cluster": label_cluster, "note": note,
+             "heldout_accuracy": {side: mode_accuracy(heldout_labels, clusters[val_rows], label_cluster) if label_cluster else None
+                                  for side, clusters in (("before", clusters_before), ("after", clusters_after))}}
     report = {
         "parent": {"path": str(json_path.with_suffix("")), "weights_sha256": _sha256(weights_path), "json_sha256": _sha256(json_path)},
         "dataset": {"path": str(dataset), "digest": dataset_digest(dataset), "trajectories": len(data), "robot": robot},
@@ -166,6 +208,7 @@ def finetune(parent: str | Path, dataset: str | Path, out: str | Path, config: F
         "phases": {p: {"steps": r.steps, "seconds": round(r.seconds, 2)} for p, r in results.items()},
         "before": before,
         "after": after,
+        "mode_labels": modes,
     }
     trainer.lineage["finetune"] = report
     report["checkpoint"] = str(trainer.save_policy().with_suffix(""))

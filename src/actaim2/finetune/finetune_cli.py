@@ -6,7 +6,8 @@ Examples:
 
 DATASET is a converted set of demonstrations (``actaim2 bag2dataset``); the checkpoint's own
 perception configuration renders its views. Prints the losses on the training and held-out
-demonstrations before and after, and the cluster each labelled demonstration falls into. The new
+demonstrations before and after, the cluster each labelled demonstration falls into, and (labels used, the
+default) each mode label's cluster with the held-out demonstrations' mode accuracy. The new
 checkpoint is ``<out>/policy`` (its JSON's ``lineage.finetune`` names the parent, the dataset and
 this command); ``<out>/finetune.json`` holds the same report.
 """
@@ -31,6 +32,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--device", choices=["auto", "cpu", "cuda"], default="auto")
     parser.add_argument("--pretraining-data", type=Path,
                         help="the parent's training dataset: checks that the demonstrations' encoder E is its encoder")
+    parser.add_argument("--no-mode-labels", action="store_true",
+                        help="ignore the demonstrations' mode labels: every cluster inferred (by default each label "
+                             "gets a cluster of its own)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
@@ -47,7 +51,8 @@ def command(args: argparse.Namespace) -> list[str]:
     line = ["actaim2", "finetune", str(args.checkpoint), str(args.dataset), "--out", str(args.out), "--phases", *args.phases,
             "--epochs", str(args.epochs), "--batch-size", str(args.batch_size), "--lr", str(args.lr),
             "--heldout", str(args.heldout), "--seed", str(args.seed), "--device", args.device]
-    return line + (["--pretraining-data", str(args.pretraining_data)] if args.pretraining_data else [])
+    return line + (["--pretraining-data", str(args.pretraining_data)] if args.pretraining_data else []) \
+        + (["--no-mode-labels"] if args.no_mode_labels else [])
 
 
 def main(args: argparse.Namespace) -> int:
@@ -56,7 +61,8 @@ def main(args: argparse.Namespace) -> int:
     from actaim2.finetune.finetune import FinetuneConfig, finetune
 
     config = FinetuneConfig(phases=tuple(args.phases), epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
-                            heldout_fraction=args.heldout, seed=args.seed, device=args.device)
+                            heldout_fraction=args.heldout, seed=args.seed, device=args.device,
+                            mode_labels=not args.no_mode_labels)
     try:
         report = finetune(args.checkpoint, args.dataset, args.out, config, command(args),
                           args.pretraining_data, show_progress=not args.no_progress)
@@ -69,5 +75,12 @@ def main(args: argparse.Namespace) -> int:
         print(f"{phase} loss before: {_losses(report['before'][phase])}; after: {_losses(report['after'][phase])}")
     print("\nclusters of the labelled demonstrations, before fine-tuning:\n" + format_table(report["before"]["clusters"]))
     print("\nafter fine-tuning:\n" + format_table(report["after"]["clusters"]))
+    modes = report["mode_labels"]
+    print(f"\nmode labels: {modes['note']}")
+    if modes["label_cluster"]:
+        print("label -> cluster: " + ", ".join(f"{label} c{c}" for label, c in sorted(modes["label_cluster"].items())))
+        for side, accuracy in modes["heldout_accuracy"].items():
+            per_label = ", ".join(f"{label} {v['correct']}/{v['demonstrations']}" for label, v in accuracy["by_label"].items())
+            print(f"held-out mode accuracy {side}: {accuracy['correct']}/{accuracy['demonstrations']} ({per_label})")
     print(f"\nwrote {report['checkpoint']}.json / .safetensors")
     return 0

@@ -42,6 +42,13 @@ def cluster_log_posterior(x: torch.Tensor, prior_mean: torch.Tensor, prior_logva
     return torch.log_softmax(joint, dim=-1)
 
 
+def with_known_clusters(log_qc: torch.Tensor, clusters: torch.Tensor) -> torch.Tensor:
+    """log q(c) with each row whose cluster is known (``clusters`` >= 0) set to that cluster: the ELBO of a
+    labelled sample, whose c is observed (Kingma et al. 2014, M2); rows with -1 keep the posterior."""
+    one_hot = torch.nn.functional.one_hot(clusters.clamp_min(0), log_qc.shape[-1]).to(log_qc.dtype)
+    return torch.where((clusters >= 0).unsqueeze(-1), torch.log(one_hot.clamp_min(1e-12)), log_qc)
+
+
 @dataclass
 class CGMVAEOutput:
     eps: torch.Tensor  # (B, eps_size) reconstruction of the true eps
@@ -53,9 +60,12 @@ class CGMVAEOutput:
     prior_mean: torch.Tensor  # (B, K, Dx) mu_c(y, O) at the sampled y
     prior_logvar: torch.Tensor
     log_pi: torch.Tensor  # (K,) normalised
-    log_qc: torch.Tensor  # (B, K) log q(c | x, y, O)
+    log_qc: torch.Tensor  # (B, K) log q(c | x, y, O), one-hot on the rows given a known cluster
     eps_generated: torch.Tensor  # (B, eps_size) decoded along the sampling path, c relaxed (Gumbel-softmax)
     eps_centres: torch.Tensor | None = None  # (B, K, eps_size) each cluster's noise-free draw (y = 0, x = mu_k); when asked
+    # (B, K) the analytic log q(c | x, y, O) and (B,) each row's known cluster (-1: unknown), when clusters were given
+    log_qc_posterior: torch.Tensor | None = None
+    clusters: torch.Tensor | None = None
 
 
 class CGMVAE(ModeSelector):
@@ -83,12 +93,15 @@ class CGMVAE(ModeSelector):
         return self.q_x(h), self.q_y(h)
 
     def forward(self, views: torch.Tensor, eps_true: torch.Tensor, noise: dict[str, torch.Tensor] | None = None,
-                temperature: float = 1.0, cluster_centres: bool = False) -> CGMVAEOutput:
+                temperature: float = 1.0, cluster_centres: bool = False,
+                clusters: torch.Tensor | None = None) -> CGMVAEOutput:
         """Posterior path of the ELBO for a batch of (O_init views, standardised z), and the
         generative path sampling takes: c relaxed from q(c | x, y, O) at ``temperature``, x drawn
         from the relaxed mixture of p(x | y, c, O), decoded (its reconstruction trains that path).
         ``cluster_centres`` adds each cluster's draw without its noise (``eps_centres``, for the
-        cluster-coverage term of train/elbo.py; K more decoder rows per sample)."""
+        cluster-coverage term of train/elbo.py; K more decoder rows per sample). ``clusters`` (B,):
+        each row's known cluster (a demonstration's mode label, fine-tuning), -1 where unknown; a known
+        cluster replaces q(c) in the ELBO and in the generative path (:func:`with_known_clusters`)."""
         tokens, flat = self.condition(views)
         noise = noise if noise is not None else self.draw_noise(len(views), device=views.device)
         (x_mean, x_logvar), (y_mean, y_logvar) = self._posteriors(flat, eps_true)
@@ -96,7 +109,8 @@ class CGMVAE(ModeSelector):
         y = y_mean + torch.exp(0.5 * y_logvar) * noise["y"]
         prior_mean, prior_logvar = self.prior_x(torch.cat([y, flat], dim=-1))
         log_pi = torch.log_softmax(self.pi_logits, dim=-1)
-        log_qc = cluster_log_posterior(x, prior_mean, prior_logvar, log_pi)
+        posterior = cluster_log_posterior(x, prior_mean, prior_logvar, log_pi)
+        log_qc = posterior if clusters is None else with_known_clusters(posterior, clusters)
         omega = gumbel_softmax(log_qc, temperature, noise["gumbel"]).unsqueeze(-1)  # (B, K, 1)
         components = prior_mean + torch.exp(0.5 * prior_logvar) * noise["x_prior"].unsqueeze(1)
         x_generated = (omega * components).sum(dim=1)
@@ -107,6 +121,7 @@ class CGMVAE(ModeSelector):
             eps=eps, x=x, x_mean=x_mean, x_logvar=x_logvar, y_mean=y_mean, y_logvar=y_logvar,
             prior_mean=prior_mean, prior_logvar=prior_logvar, log_pi=log_pi, log_qc=log_qc, eps_generated=eps_generated,
             eps_centres=self.cluster_centres(tokens, flat) if cluster_centres else None,
+            log_qc_posterior=None if clusters is None else posterior, clusters=clusters,
         )
 
     def cluster_centres(self, tokens: torch.Tensor, flat: torch.Tensor) -> torch.Tensor:
@@ -123,12 +138,17 @@ class CGMVAE(ModeSelector):
         return self.decoder(x_mean, tokens)
 
     @torch.no_grad()
-    def assign_clusters(self, views: torch.Tensor, eps_true: torch.Tensor) -> torch.Tensor:
-        """argmax q(c | x, y, O) at the posterior means of x and y."""
+    def cluster_probabilities(self, views: torch.Tensor, eps_true: torch.Tensor) -> torch.Tensor:
+        """(B, K) q(c | x, y, O) at the posterior means of x and y."""
         _, flat = self.condition(views)
         (x_mean, _), (y_mean, _) = self._posteriors(flat, eps_true)
         prior_mean, prior_logvar = self.prior_x(torch.cat([y_mean, flat], dim=-1))
-        return cluster_log_posterior(x_mean, prior_mean, prior_logvar, self.pi_logits).argmax(dim=-1)
+        return torch.exp(cluster_log_posterior(x_mean, prior_mean, prior_logvar, self.pi_logits))
+
+    @torch.no_grad()
+    def assign_clusters(self, views: torch.Tensor, eps_true: torch.Tensor) -> torch.Tensor:
+        """argmax q(c | x, y, O) at the posterior means of x and y."""
+        return self.cluster_probabilities(views, eps_true).argmax(dim=-1)
 
     @torch.no_grad()
     def sample(self, views: torch.Tensor, cluster: int | None = None,

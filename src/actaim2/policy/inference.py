@@ -107,6 +107,12 @@ class PolicyModel:
         """Discrete modes of the selector (0 for the continuous CVAE baseline)."""
         return 0 if self.selector is None or self.selector.config.kind == "cvae" else self.selector.config.clusters
 
+    @property
+    def mode_labels(self) -> dict[str, int]:
+        """Operator mode label -> cluster, as fine-tuning on labelled demonstrations mapped them (empty otherwise)."""
+        finetune = (self.meta.get("lineage") or {}).get("finetune") or {}
+        return {label: int(c) for label, c in ((finetune.get("mode_labels") or {}).get("label_cluster") or {}).items()}
+
     def views_config(self, role: str) -> PerceptionConfig:
         """The perception configuration whose views ``role`` ("selector" or "predictor") was trained on."""
         return self._configs[role]

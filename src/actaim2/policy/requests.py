@@ -57,6 +57,23 @@ def check_cluster(cluster: int, clusters: int) -> int | None:
     return int(cluster)
 
 
+def resolve_mode_label(label: str, cluster: int, label_cluster: dict[str, int]) -> int:
+    """The cluster a request asks for: ``cluster`` without a mode label, else the label's cluster under the
+    checkpoint's map (``label_cluster``); a RequestError for an unknown label or one that disagrees with a
+    requested cluster (>= 0)."""
+    if not label:
+        return int(cluster)
+    if label not in label_cluster:
+        known = f"it maps {', '.join(sorted(label_cluster))}" if label_cluster else \
+            "it maps no mode labels (a checkpoint fine-tuned on labelled demonstrations does)"
+        raise RequestError(f"unknown mode label {label!r}: {known}")
+    mapped = label_cluster[label]
+    if int(cluster) >= 0 and int(cluster) != mapped:
+        raise RequestError(f"mode label {label!r} is cluster {mapped}, the request asks for cluster {cluster}: "
+                           "pass -1 or that cluster")
+    return mapped
+
+
 def check_fresh(views_stamp_ns: int, not_before_ns: int) -> None:
     """Views stamped before ``not_before`` show the scene before the last motion: refused."""
     if views_stamp_ns < not_before_ns:

@@ -163,6 +163,12 @@ def record_from_validation(run_dir: Path, root: Path, name: str, *, command: str
     return _write_record(root, name, meta, lines)
 
 
+def record_from_samples(root: Path, name: str, meta: dict, samples: list[dict]) -> Path:
+    """Write ``root/results/<name>/`` from a measurement's own samples and fields (``meta``: at least
+    ``kind``, ``command``, ``seconds``, ``samples``, ``machine``, ``cores``). Returns the folder."""
+    return _write_record(root, name, {"name": name, **meta}, [json.dumps(s, sort_keys=True) for s in samples])
+
+
 def _write_record(root: Path, name: str, meta: dict, lines: list[str]) -> Path:
     out = Path(root) / RESULTS_DIR / name
     out.mkdir(parents=True, exist_ok=True)

@@ -17,6 +17,7 @@ from actaim2.eval import tables as et
 from actaim2.eval.evalset import SPLIT_TITLES, SPLITS
 from actaim2.eval.methods import METHODS
 from actaim2.eval.paired import comparison
+from actaim2.eval.standin import summary_table
 from actaim2.metrics.stats import Rate
 from actaim2.report.records import Record, RecordError
 
@@ -248,6 +249,11 @@ def errors_table(records: Sequence[Record]) -> list[str]:
     return lines
 
 
+def self_filter_table(records: Sequence[Record]) -> list[str]:
+    """``actaim2 bench standin-self-filter``'s table: arm left and scene removed by the self-filter per placement."""
+    return summary_table([s for r in records for s in r.samples])
+
+
 # marker table name -> renderer of the records the marker names
 TABLES: dict[str, Callable[[Sequence[Record]], list[str]]] = {
     "results": results_table,
@@ -265,4 +271,5 @@ TABLES: dict[str, Callable[[Sequence[Record]], list[str]]] = {
     "label": label_table,
     "compare": compare_table,
     "errors": errors_table,
+    "self_filter": self_filter_table,
 }

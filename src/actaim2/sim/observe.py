@@ -60,12 +60,16 @@ class CameraRig:
     def reset(self, seed: int) -> None:
         """New episode: reseed the noise and draw this episode's extrinsic and systematic depth errors."""
         self._rng = np.random.default_rng(seed)
+        # Where each camera renders from this episode: the simulator's truth, for measurements (never for a
+        # consumer of the clouds, which knows the nominal pose alone).
+        self.render_poses = {cam.name: cam.T_world_optical for cam in self._rendered}
         if self.noise.affects_extrinsics:
             poses = self.noise.jitter_poses(self._rendered, self._rng)
             for cam in self._rendered:  # a colour camera moves with its depth camera
                 if cam.colour is not None:
                     poses[cam.colour.name] = poses[cam.name] @ cam.T_optical_colour
             self._renderer.set_camera_poses(poses)
+            self.render_poses.update(poses)
         self._biases = self.noise.draw_biases(self._rendered, self._rng)
 
     @timed("render")

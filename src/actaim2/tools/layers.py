@@ -47,7 +47,8 @@ LAYERS = (
     Layer("serving", ("policy",), SERVING),
     Layer("fine-tuning", ("finetune",), TRAINING),
     Layer("evaluation", ("eval",), SERVING),
-    Layer("commands", ("bench", "cli", "export", "report", "tools", "viz")),
+    Layer("records", ("report",)),
+    Layer("commands", ("bench", "cli", "export", "tools", "viz")),
 )
 
 

@@ -45,6 +45,10 @@ class ElboWeights:
     # Not an ELBO term: winner-takes-all over the K clusters' noise-free draws - each trajectory pulls the cluster whose
     # draw lies nearest its eps, so one object's K draws spread over its eps (train/elbo.py cluster_coverage; 0: off).
     cluster_coverage: float = 0.0
+    # Not an ELBO term: -log q(c* | x, y, O) of a trajectory whose cluster c* is known (a demonstration's mode label,
+    # fine-tuning), so its posterior picks that cluster (train/elbo.py known_cluster_loss); no effect without one.
+    # Its nats weigh against the reconstruction's squared error, summed over the hundreds of eps values.
+    known_cluster: float = 100.0
 
 
 @dataclass(frozen=True)

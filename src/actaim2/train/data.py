@@ -39,6 +39,9 @@ class TrainingData:
     # None where a trajectory has no DoF measurement (demonstrations from bags) or the data no index
     # (synthetic data); the mode contrast and validate's outcome figures need them
     outcomes: np.ndarray | None = None
+    # (N,) int: each trajectory's known cluster, -1 where unknown; a demonstration's mode label mapped to the cluster
+    # fine-tuning assigns it (finetune/clusters.py); None: no cluster known (the ELBO infers every one)
+    clusters: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -48,7 +51,12 @@ class TrainingData:
         rows = np.asarray(rows)
         return TrainingData(_Rows(self.init_views, rows), _Rows(self.key_views, rows), self.keyposes[rows],
                             self.gripper[rows], self.valid[rows], self.z[rows], [self.ids[i] for i in rows],
-                            None if self.outcomes is None else self.outcomes[rows])
+                            None if self.outcomes is None else self.outcomes[rows],
+                            None if self.clusters is None else self.clusters[rows])
+
+    def known_clusters(self, rows: np.ndarray, device: torch.device | str = "cpu") -> torch.Tensor | None:
+        """(B,) the known clusters of trajectory ``rows`` (-1: unknown), None when the data know none."""
+        return None if self.clusters is None else torch.from_numpy(self.clusters[rows].astype(np.int64)).to(device)
 
     def keyframes(self) -> np.ndarray:
         """(M, 2) [trajectory, phase] of every keyframe with a valid target."""

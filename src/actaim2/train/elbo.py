@@ -68,18 +68,30 @@ def cgmvae_loss(out: CGMVAEOutput, eps: torch.Tensor, w: ElboWeights) -> tuple[t
     kl_y = gaussian_kl(out.y_mean, out.y_logvar, torch.zeros_like(out.y_mean), torch.zeros_like(out.y_logvar))
     kl_c = categorical_kl(out.log_qc, out.log_pi)
     generative = reconstruction(out.eps_generated, eps)
-    balance = cluster_imbalance(out.log_qc)
-    doubt = -(qc * out.log_qc).sum(dim=-1)  # H(q(c | x, y, O)) per trajectory
+    posterior = out.log_qc if out.log_qc_posterior is None else out.log_qc_posterior  # not the known clusters' one-hot
+    balance = cluster_imbalance(posterior)
+    doubt = -(torch.exp(posterior) * posterior).sum(dim=-1)  # H(q(c | x, y, O)) per trajectory
     coverage = cluster_coverage(out.eps_centres, eps) if out.eps_centres is not None else torch.zeros_like(rec)
+    label = known_cluster_loss(out.log_qc_posterior, out.clusters) if out.clusters is not None else torch.zeros_like(rec)
     loss = (w.reconstruction * rec + w.x_prior * kl_x + w.y_prior * kl_y + w.c_prior * kl_c + w.generative * generative
-            + w.cluster_confidence * doubt + w.cluster_coverage * coverage).mean()
+            + w.cluster_confidence * doubt + w.cluster_coverage * coverage + w.known_cluster * label).mean()
     loss = loss + w.cluster_balance * balance
     return loss, {
         "reconstruction": rec.mean().item(), "kl_x": kl_x.mean().item(), "kl_y": kl_y.mean().item(),
         "kl_c": kl_c.mean().item(), "generative": generative.mean().item(), "cluster_imbalance": balance.item(),
-        "cluster_entropy": doubt.mean().item(), "cluster_coverage": coverage.mean().item(),
-        "clusters_used": int(torch.unique(out.log_qc.argmax(-1)).numel()),
+        "cluster_entropy": doubt.mean().item(), "cluster_coverage": coverage.mean().item(), "known_cluster": label.mean().item(),
+        "clusters_used": int(torch.unique(posterior.argmax(-1)).numel()),
     }
+
+
+def known_cluster_loss(log_qc: torch.Tensor, clusters: torch.Tensor) -> torch.Tensor:
+    """(B,) -log q(c* | x, y, O) of each row's known cluster c* (0 where it is -1, unknown).
+
+    Why (``ElboWeights.known_cluster``): with c observed the ELBO no longer trains the posterior that
+    ``assign_clusters`` reads; this is the classification term a labelled sample adds (Kingma et al. 2014, M2).
+    """
+    picked = log_qc.gather(1, clusters.clamp_min(0).unsqueeze(1)).squeeze(1)
+    return torch.where(clusters >= 0, -picked, torch.zeros_like(picked))
 
 
 def cluster_coverage(centres: torch.Tensor, eps: torch.Tensor) -> torch.Tensor:
@@ -128,20 +140,23 @@ def vqvae_loss(out: VQVAEOutput, eps: torch.Tensor, w: ElboWeights, commitment: 
 
 
 def selector_loss(model: ModeSelector, views: torch.Tensor, eps: torch.Tensor, weights: ElboWeights,
-                  noise: dict[str, torch.Tensor] | None = None,
-                  temperature: float = 1.0) -> tuple[torch.Tensor, torch.Tensor, dict[str, float]]:
+                  noise: dict[str, torch.Tensor] | None = None, temperature: float = 1.0,
+                  clusters: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor, dict[str, float]]:
     """(loss, reconstructed eps, metrics) of any selector on (O_init views, standardised z);
-    ``temperature`` is the CGMVAE's Gumbel-softmax temperature (models/gumbel.py).
+    ``temperature`` is the CGMVAE's Gumbel-softmax temperature (models/gumbel.py); ``clusters`` (B,) each
+    row's known cluster, -1 where unknown (the CGMVAE's alone: ``CGMVAE.forward``).
 
     ``model`` may be wrapped in DistributedDataParallel; the reconstruction is returned so the
     joint phase can feed it, detached, to the action predictor without a second forward.
     """
     core = model.module if hasattr(model, "module") else model
     if isinstance(core, CGMVAE):
-        out = model(views, eps, noise, temperature, cluster_centres=weights.cluster_coverage > 0)
+        out = model(views, eps, noise, temperature, cluster_centres=weights.cluster_coverage > 0, clusters=clusters)
         loss, metrics = cgmvae_loss(out, eps, weights)
         metrics["temperature"] = temperature
         return loss, out.eps, metrics
+    if clusters is not None:
+        raise TypeError(f"selector {type(core).__name__} takes no known clusters (the CGMVAE alone does)")
     out = model(views, eps, noise)
     if isinstance(core, CVAESelector):
         loss, metrics = cvae_loss(out, eps, weights)

@@ -423,7 +423,8 @@ class Trainer:
                     condition = np.array([rng.choice(self.same_object[r]) for r in rows])
                 views, _ = data.selector_batch(condition, self.device)  # the O_init each trajectory is conditioned on
                 z = torch.from_numpy(data.z[rows]).to(self.device)
-                elbo, _, metrics = selector_loss(selector, views, self.selector.standardise(z), weights, temperature=self.temperature)
+                elbo, _, metrics = selector_loss(selector, views, self.selector.standardise(z), weights, temperature=self.temperature,
+                                                 clusters=data.known_clusters(rows, self.device))
                 return None, elbo, metrics
             batch = data.keyframe_batch(items, self.device)
             eps_true = self.selector.standardise(batch["z"])
@@ -431,7 +432,8 @@ class Trainer:
             elbo = None
             eps_in = eps_true
             if phase == "joint":
-                elbo, eps_hat, sel_metrics = selector_loss(selector, batch["init_views"], eps_true, weights, temperature=self.temperature)
+                elbo, eps_hat, sel_metrics = selector_loss(selector, batch["init_views"], eps_true, weights, temperature=self.temperature,
+                                                           clusters=data.known_clusters(items[:, 0], self.device))
                 eps_in = eps_hat.detach()
                 metrics.update({f"selector_{k}": v for k, v in sel_metrics.items()})
             views, keypose = self.augment(batch["views"], batch["keypose"], rng)
