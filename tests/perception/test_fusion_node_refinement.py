@@ -12,8 +12,8 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 from sensor_msgs.msg import JointState, PointCloud2
 
-from actaim2_perception.pointcloud2 import from_msg, to_msg
-from actaim2_perception.transforms import StaticTransformPublisher, matrix_to_transform
+from actaim2_ros.pointcloud2 import from_msg, to_msg
+from actaim2_ros.transforms import StaticTransformPublisher, matrix_to_transform
 from harness import wait_for
 from test_fusion_node import (  # noqa: F401 - azure_cloud and panda_joints are fixtures
     T_BASE_DEPTH,
