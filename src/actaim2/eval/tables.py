@@ -324,7 +324,7 @@ def report(records: Sequence[dict], methods: list[str], header: list[str]) -> st
     lines += ["", "## SSR per cluster", "",
               "SSR % [95 % Wilson] of each cluster's (code's) samples / the share of them that ran all four phases.", ""]
     lines += cluster_table(records, done)
-    lines += ["", "## Acceptance checks (issue 13)", ""] + acceptance_table(records)
+    lines += ["", "## Acceptance checks", ""] + acceptance_table(records)
     lines += ["", "## Where samples stopped (all splits)", "",
               "A keypose the planner refuses, with every fallback given with it, ends its sample (docs/evaluation.md); "
               "the rest ran all four phases."]
